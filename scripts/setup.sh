@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# Installs everything pumeta needs from Debian's archive. Idempotent: installs only what is
+# missing, so a second run takes a second.
+set -euo pipefail
+
+packages=(
+    build-essential cmake ninja-build ccache pkg-config
+    libtorch-dev libgloo-dev
+    # Without an optimised BLAS LibTorch falls back to reference BLAS (about 7x slower).
+    libopenblas0-openmp
+    libnanoflann-dev libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev libeigen3-dev
+    libstb-dev libgtest-dev libbenchmark-dev
+    # Malformed and odd model files for the parser tests.
+    assimp-testmodels
+)
+
+missing=()
+for p in "${packages[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+    echo "setup: installing ${missing[*]}"
+    sudo_cmd=()
+    [ "$(id -u)" -ne 0 ] && sudo_cmd=(sudo)
+    "${sudo_cmd[@]}" apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends \
+        "${missing[@]}"
+fi
+echo "setup: all packages present"

@@ -1,0 +1,12 @@
+// Precompiled header for every pumeta target: the expensive, stable includes.
+#pragma once
+
+#include <ATen/ATen.h>
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>

@@ -1,0 +1,46 @@
+// Sampling points: from clouds (farthest point, uniform random, the PU-GAN non-uniform
+// index sampler) and from meshes (area-weighted uniform, Poisson disk by sample elimination).
+// Every random function takes a seed; the same seed gives the same result.
+#pragma once
+
+#include <ATen/core/Tensor.h>
+
+#include <cstdint>
+
+#include "pumeta/geometry/point_cloud.h"
+
+namespace pumeta {
+
+/// Farthest point sampling. points: float32 [N,3]; returns int64 [m] indices, the first
+/// being `start` (the point itself, not a random choice, so results are reproducible).
+/// InputError when m > N.
+at::Tensor farthest_point_sampling(const at::Tensor& points, int64_t m, int64_t start = 0);
+
+/// Batched FPS on any device: points [B,N,3] -> int64 [B,m], starting at index 0 of each.
+at::Tensor farthest_point_sampling_batched(const at::Tensor& points, int64_t m);
+
+/// m distinct indices drawn uniformly from [0, n) (sorted ascending). InputError when m > n.
+at::Tensor random_subset(int64_t n, int64_t m, uint64_t seed);
+
+/// The PU-GAN/PU-GCN non-uniform index sampler: loc ~ U(0.1, 0.9); draw
+/// int(N(loc, 0.3) * n) until m unique indices in [0, n) are found; returns int64 [m] in
+/// draw order. The points must be ordered spatially (e.g. by distance to a patch seed) for
+/// the result to be non-uniform on the surface.
+at::Tensor nonuniform_subset(int64_t n, int64_t m, uint64_t seed);
+
+/// n points uniformly distributed on the surface (triangle chosen by area, uniform
+/// barycentrics), with the face normals. Degenerate (zero-area) faces are never chosen.
+PointCloud sample_uniform(const TriangleMesh& mesh, int64_t n, uint64_t seed);
+
+/// Options of Poisson-disk sampling by weighted sample elimination (Yuksel 2015), the method
+/// of Open3D's SamplePointsPoissonDisk.
+struct PoissonDiskOptions {
+    /// Initial uniform samples = init_factor * n (Open3D's default 5).
+    int64_t init_factor = 5;
+};
+
+/// n blue-noise points on the surface with face normals.
+PointCloud sample_poisson_disk(const TriangleMesh& mesh, int64_t n, uint64_t seed,
+                               const PoissonDiskOptions& options = {});
+
+}  // namespace pumeta
