@@ -1,3 +1,56 @@
+// pumeta: point-cloud upsampling with test-time adaptation. Exit codes: 0 success, 2 bad input
+// or usage, 1 internal failure.
+#include <ATen/Parallel.h>
+#include <spdlog/spdlog.h>
+
 #include <CLI/CLI.hpp>
 #include <cstdio>
-int main(int argc, char** argv) { CLI::App app{"pumeta"}; CLI11_PARSE(app, argc, argv); return 0; }
+#include <exception>
+
+#include "pumeta/cli/commands.h"
+#include "pumeta/core/device.h"
+#include "pumeta/core/error.h"
+
+int main(int argc, char** argv) {
+    CLI::App app{
+        "pumeta: upsample sparse point clouds with neural networks adapted to each "
+        "input by meta-learning"};
+    app.require_subcommand(1);
+    int threads = 0;
+    std::string log_level = "info";
+    app.add_option("--threads", threads, "CPU threads (default: all cores)")
+        ->check(CLI::NonNegativeNumber);
+    app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off")
+        ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "off"}));
+    app.parse_complete_callback([&] {
+        spdlog::set_level(spdlog::level::from_str(log_level));
+        spdlog::set_pattern("%^[%l]%$ %v");
+        if (threads > 0) at::set_num_threads(threads);
+    });
+
+    pumeta::cli::add_info_command(app);
+    pumeta::cli::add_convert_command(app);
+    pumeta::cli::add_sample_command(app);
+    pumeta::cli::add_metrics_command(app);
+
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::CallForHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::CallForAllHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::ParseError& e) {
+        app.exit(e);
+        return 2;
+    } catch (const pumeta::InputError& e) {
+        std::fprintf(stderr, "pumeta: error: %s\n", e.what());
+        return 2;
+    } catch (const std::exception& e) {
+        // Only the first line: LibTorch errors append a C++ backtrace.
+        std::string message = e.what();
+        message = message.substr(0, message.find('\n'));
+        std::fprintf(stderr, "pumeta: internal error: %s\n", message.c_str());
+        return 1;
+    }
+    return 0;
+}

@@ -17,8 +17,7 @@ std::string shape_string(const at::Tensor& tensor) {
 void check_points(const at::Tensor& points, const std::string& what, int64_t min_count) {
     if (!points.defined()) throw_input_error(what, "point tensor is undefined");
     if (points.dim() != 2 || points.size(1) != 3)
-        throw_input_error(what, "expected points of shape [N,3], found {}",
-                          shape_string(points));
+        throw_input_error(what, "expected points of shape [N,3], found {}", shape_string(points));
     if (points.scalar_type() != at::kFloat)
         throw_input_error(what, "expected float32 points, found {}",
                           std::string(c10::toString(points.scalar_type())));
@@ -28,8 +27,7 @@ void check_points(const at::Tensor& points, const std::string& what, int64_t min
 
 void check_batched_points(const at::Tensor& points, const std::string& what) {
     if (!points.defined() || points.dim() != 3 || points.size(2) != 3)
-        throw_input_error(what, "expected points of shape [B,N,3], found {}",
-                          shape_string(points));
+        throw_input_error(what, "expected points of shape [B,N,3], found {}", shape_string(points));
     if (points.scalar_type() != at::kFloat && points.scalar_type() != at::kDouble)
         throw_input_error(what, "expected floating-point points, found {}",
                           std::string(c10::toString(points.scalar_type())));
@@ -43,8 +41,8 @@ void check_faces(const at::Tensor& faces, int64_t num_vertices, const std::strin
     int64_t lo = faces.min().item<int64_t>();
     int64_t hi = faces.max().item<int64_t>();
     if (lo < 0 || hi >= num_vertices)
-        throw_input_error(what, "face index out of range: found [{}, {}], mesh has {} vertices",
-                          lo, hi, num_vertices);
+        throw_input_error(what, "face index out of range: found [{}, {}], mesh has {} vertices", lo,
+                          hi, num_vertices);
 }
 
 }  // namespace pumeta

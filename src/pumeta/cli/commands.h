@@ -1,0 +1,23 @@
+// The subcommands of the `pumeta` binary. Each add_*_command registers one subcommand and
+// its callback on the app; main() wires them up and turns exceptions into exit codes.
+#pragma once
+
+#include <CLI/CLI.hpp>
+#include <string>
+
+#include "pumeta/geometry/io.h"
+
+namespace pumeta::cli {
+
+void add_info_command(CLI::App& app);
+void add_convert_command(CLI::App& app);
+void add_sample_command(CLI::App& app);
+void add_metrics_command(CLI::App& app);
+
+/// Options shared by commands that read geometry files: --format, --drop-invalid.
+void add_read_options(CLI::App& command, ReadOptions& options);
+
+/// Prints a JSON value on stdout (one line) — the --json contract.
+void print_json(const nlohmann::json& value);
+
+}  // namespace pumeta::cli

@@ -1,0 +1,72 @@
+// pumeta info FILE [--json]: what a cloud, mesh or model file holds.
+#include <ATen/ATen.h>
+
+#include <iostream>
+
+#include "pumeta/cli/commands.h"
+
+namespace pumeta::cli {
+
+namespace {
+
+struct InfoArgs {
+    std::string path;
+    bool json = false;
+    ReadOptions read;
+};
+
+nlohmann::json geometry_info(const std::string& path, const ReadOptions& read) {
+    Geometry geometry = read_geometry(path, read);
+    const at::Tensor& points = geometry.cloud.points;
+    nlohmann::json info;
+    info["file"] = path;
+    info["format"] = read.format.empty() ? format_from_path(path) : read.format;
+    info["kind"] = geometry.is_mesh() ? "mesh" : "point_cloud";
+    info["points"] = geometry.cloud.size();
+    info["faces"] = geometry.is_mesh() ? geometry.faces.size(0) : 0;
+    info["normals"] = geometry.cloud.has_normals();
+    info["colors"] = geometry.cloud.has_colors();
+    if (geometry.cloud.size() > 0) {
+        at::Tensor lo = std::get<0>(points.min(0)).to(at::kDouble);
+        at::Tensor hi = std::get<0>(points.max(0)).to(at::kDouble);
+        std::vector<double> lo_v(lo.data_ptr<double>(), lo.data_ptr<double>() + 3);
+        std::vector<double> hi_v(hi.data_ptr<double>(), hi.data_ptr<double>() + 3);
+        info["bounds"] = {{"min", lo_v}, {"max", hi_v}};
+    }
+    return info;
+}
+
+void print_text(const nlohmann::json& info) {
+    std::cout << info["file"].get<std::string>() << ": " << info["kind"].get<std::string>() << " ("
+              << info["format"].get<std::string>() << ")\n";
+    std::cout << "  points: " << info["points"] << "\n";
+    if (info["faces"].get<int64_t>() > 0) std::cout << "  faces:  " << info["faces"] << "\n";
+    std::cout << "  normals: " << (info["normals"].get<bool>() ? "yes" : "no")
+              << ", colours: " << (info["colors"].get<bool>() ? "yes" : "no") << "\n";
+    if (info.contains("bounds")) {
+        const auto& lo = info["bounds"]["min"];
+        const auto& hi = info["bounds"]["max"];
+        std::cout << fmt::format("  bounds: [{:.6g}, {:.6g}, {:.6g}] .. [{:.6g}, {:.6g}, {:.6g}]\n",
+                                 lo[0].get<double>(), lo[1].get<double>(), lo[2].get<double>(),
+                                 hi[0].get<double>(), hi[1].get<double>(), hi[2].get<double>());
+    }
+}
+
+}  // namespace
+
+void add_info_command(CLI::App& app) {
+    auto args = std::make_shared<InfoArgs>();
+    CLI::App* command = app.add_subcommand("info", "counts, bounds and properties of a file");
+    command->add_option("file", args->path, "point cloud, mesh or model file")->required();
+    command->add_flag("--json", args->json, "one JSON object on stdout");
+    add_read_options(*command, args->read);
+    command->callback([args] {
+        nlohmann::json info = geometry_info(args->path, args->read);
+        if (args->json)
+            print_json(info);
+        else
+            print_text(info);
+    });
+}
+
+}  // namespace pumeta::cli

@@ -1,0 +1,69 @@
+// The plug-in interface every upsampling network implements. Meta-learning (meta/) and
+// training (train/) see backbones only through it.
+#pragma once
+
+#include <ATen/core/Tensor.h>
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <string>
+
+#include "pumeta/nn/parameters.h"
+
+namespace pumeta {
+
+/// A point-cloud upsampling network whose forward pass can run from its own parameters or from
+/// an explicit ParamMap with the same names (MAML's fast weights θ'), so that adapted weights
+/// need no module copies and the inner loop stays twice differentiable.
+class Backbone {
+  public:
+    virtual ~Backbone() = default;
+
+    /// Registry name ("pugcn", "dispu", "pudense").
+    virtual std::string name() const = 0;
+    /// Everything needed to rebuild this backbone with make_backbone(): {"backbone": name, ...}.
+    virtual nlohmann::json config() const = 0;
+    /// Upsampling ratio r.
+    virtual int64_t ratio() const = 0;
+    /// Points per input patch the network is trained on (256 for PU-GCN and Dis-PU).
+    virtual int64_t patch_size() const = 0;
+
+    /// The backbone's own parameters (leaf tensors with requires_grad = true).
+    ParamMap& parameters() { return params_; }
+    const ParamMap& parameters() const { return params_; }
+
+    /// Upsamples normalised patches: x float32 [B,N,3] -> [B,rN,3].
+    virtual at::Tensor upsample(const at::Tensor& x, const ParamMap& params) const = 0;
+    at::Tensor upsample(const at::Tensor& x) const { return upsample(x, params_); }
+
+    /// Training loss of upsampling `input` [B,N,3] towards `target` [B,rN,3] with `params`
+    /// (a scalar, differentiable twice w.r.t. params). `step` is the training step for
+    /// losses with schedules. Used by pretraining, by the MAML outer loss (X, Y) and by the
+    /// inner / test-time loss (X↓, X).
+    virtual at::Tensor loss(const at::Tensor& input, const at::Tensor& target,
+                            const ParamMap& params, int64_t step = 0) const = 0;
+
+    /// The training-pair downsampler: dense [B,M,3] -> sparse [B,M/r,3], the pattern the
+    /// backbone was trained on (e.g. uniform random or FPS subset, or the PU-GAN non-uniform
+    /// sampler). Builds X↓ from X for test-time adaptation.
+    virtual at::Tensor downsample(const at::Tensor& dense, uint64_t seed) const = 0;
+
+    /// Moves parameters to a device ("cpu", "cuda").
+    void to(const std::string& device);
+
+  protected:
+    ParamMap params_;
+};
+
+/// Builds a backbone from its JSON config (config["backbone"] picks the kind); InputError for
+/// an unknown kind or invalid fields. Parameters are freshly initialised from config["seed"].
+std::unique_ptr<Backbone> make_backbone(const nlohmann::json& config);
+
+using BackboneFactory = std::function<std::unique_ptr<Backbone>(const nlohmann::json&)>;
+
+/// Adds a backbone kind to the registry (called once per backbone in registry.cpp).
+void register_backbone(const std::string& name, BackboneFactory factory);
+
+}  // namespace pumeta
