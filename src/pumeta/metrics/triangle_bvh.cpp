@@ -38,11 +38,13 @@ double point_segment_sq_distance(const double p[3], const double a[3], const dou
     return dot(d, d);
 }
 
-/// Squared distance from p to the closest point of p's Voronoi region on the triangle
-/// (Ericson 5.1.5). The caller guarantees a non-degenerate triangle, so every divisor below
-/// is a positive squared length or squared area.
+/// Squared distance from p to the triangle, found through p's Voronoi region (Ericson
+/// 5.1.5). `normal` = (b - a) x (c - a). The caller guarantees a non-degenerate triangle, so
+/// the edge divisors are positive squared edge lengths. In the face region the distance to
+/// the plane is used instead of Ericson's barycentric closest point: it stays accurate on
+/// slivers, where va + vb + vc (the squared area) suffers cancellation.
 double ericson_sq_distance(const double p[3], const double a[3], const double b[3],
-                           const double c[3]) {
+                           const double c[3], const Vec3& normal) {
     Vec3 ab = sub(b, a), ac = sub(c, a), ap = sub(p, a);
     double d1 = dot(ab, ap), d2 = dot(ac, ap);
     if (d1 <= 0 && d2 <= 0) return dot(ap, ap);  // vertex a
@@ -51,35 +53,36 @@ double ericson_sq_distance(const double p[3], const double a[3], const double b[
     double d3 = dot(ab, bp), d4 = dot(ac, bp);
     if (d3 >= 0 && d4 <= d3) return dot(bp, bp);  // vertex b
 
-    auto sq_norm_of = [&](double v, double w) {
+    // |p - (a + v ab + w ac)|^2
+    auto sq_distance_to = [&](double v, double w) {
         Vec3 d = {ap[0] - v * ab[0] - w * ac[0], ap[1] - v * ab[1] - w * ac[1],
                   ap[2] - v * ab[2] - w * ac[2]};
         return dot(d, d);
     };
     double vc = d1 * d4 - d3 * d2;
-    if (vc <= 0 && d1 >= 0 && d3 <= 0) return sq_norm_of(d1 / (d1 - d3), 0);  // edge ab
+    if (vc <= 0 && d1 >= 0 && d3 <= 0) return sq_distance_to(d1 / (d1 - d3), 0);  // edge ab
 
     Vec3 cp = sub(p, c);
     double d5 = dot(ab, cp), d6 = dot(ac, cp);
     if (d6 >= 0 && d5 <= d6) return dot(cp, cp);  // vertex c
 
     double vb = d5 * d2 - d1 * d6;
-    if (vb <= 0 && d2 >= 0 && d6 <= 0) return sq_norm_of(0, d2 / (d2 - d6));  // edge ac
+    if (vb <= 0 && d2 >= 0 && d6 <= 0) return sq_distance_to(0, d2 / (d2 - d6));  // edge ac
 
     double va = d3 * d6 - d5 * d4;
     if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {  // edge bc
         double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return sq_norm_of(1 - w, w);
+        return sq_distance_to(1 - w, w);
     }
-    double denom = va + vb + vc;  // |ab x ac|^2
-    return sq_norm_of(vb / denom, vc / denom);  // face interior
+    double height = dot(ap, normal);  // face interior
+    return height * height / dot(normal, normal);
 }
 
-/// Triangles whose area is this small relative to their longest edge squared are treated
-/// as segments: Ericson's barycentric divisions lose all precision (or divide 0 by 0) there,
-/// and the distance to the three edges differs from the true one by at most this fraction
-/// of the longest edge.
-constexpr double kDegenerateRatio = 1e-12;
+/// Triangles whose doubled area |ab x ac| is at most this fraction of their longest edge
+/// squared are treated as their three edges. Their height is then below this fraction of
+/// the longest edge, which bounds the error of doing so; above it, rounding in Ericson's
+/// region tests misplaces region borders by about the same amount.
+constexpr double kDegenerateRatio = 1e-8;
 
 double point_triangle_sq_distance(const double p[3], const double a[3], const double b[3],
                                   const double c[3]) {
@@ -87,7 +90,7 @@ double point_triangle_sq_distance(const double p[3], const double a[3], const do
     Vec3 normal = cross(ab, ac);
     double longest_sq = std::max({dot(ab, ab), dot(ac, ac), dot(bc, bc)});
     if (std::sqrt(dot(normal, normal)) > kDegenerateRatio * longest_sq)
-        return ericson_sq_distance(p, a, b, c);
+        return ericson_sq_distance(p, a, b, c, normal);
     return std::min({point_segment_sq_distance(p, a, b), point_segment_sq_distance(p, a, c),
                      point_segment_sq_distance(p, b, c)});
 }
@@ -124,8 +127,8 @@ constexpr int64_t kLeafSize = 4;
 
 struct Node {
     Aabb box;
-    // Inner node: children at `first` and `first + 1` in `nodes`, count == 0.
-    // Leaf: triangles order[first, first + count).
+    // Inner node: children nodes[first] and nodes[first + 1], count == 0.
+    // Leaf: triangles[first, first + count), the triangles being stored in leaf order.
     int64_t first = 0;
     int64_t count = 0;
 };
@@ -196,7 +199,6 @@ TriangleBvh::Impl::Impl(std::vector<std::array<Vec3, 3>> input) {
     }
     triangles.resize(n);
     for (int64_t i = 0; i < n; ++i) triangles[i] = input[order[i]];
-    // Leaves index the reordered triangles directly.
 }
 
 double TriangleBvh::Impl::sq_distance(const double p[3]) const {

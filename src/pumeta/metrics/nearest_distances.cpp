@@ -1,0 +1,32 @@
+#include "pumeta/metrics/nearest_distances.h"
+
+#include <ATen/ATen.h>
+
+#include "pumeta/geometry/knn.h"
+
+namespace pumeta {
+
+std::vector<double> nearest_sq_distances(const at::Tensor& from, const at::Tensor& to) {
+    at::Tensor queries = from.to(at::kCPU, at::kDouble).contiguous();
+    at::Tensor points = to.to(at::kCPU, at::kDouble).contiguous();
+    at::Tensor nearest = KdTree(points.to(at::kFloat)).query(queries.to(at::kFloat), 1).indices;
+    nearest = nearest.contiguous();
+
+    const int64_t count = queries.size(0);
+    const double* q = queries.data_ptr<double>();
+    const double* p = points.data_ptr<double>();
+    const int64_t* index = nearest.data_ptr<int64_t>();
+    std::vector<double> sq_distances(count);
+    for (int64_t i = 0; i < count; ++i) {
+        const double* neighbour = p + 3 * index[i];
+        double sum = 0;
+        for (int d = 0; d < 3; ++d) {
+            double delta = q[3 * i + d] - neighbour[d];
+            sum += delta * delta;
+        }
+        sq_distances[i] = sum;
+    }
+    return sq_distances;
+}
+
+}  // namespace pumeta
