@@ -13,6 +13,9 @@ void add_info_command(CLI::App& app);
 void add_convert_command(CLI::App& app);
 void add_sample_command(CLI::App& app);
 void add_metrics_command(CLI::App& app);
+void add_gen_shapes_command(CLI::App& app);
+void add_make_dataset_command(CLI::App& app);
+void add_train_command(CLI::App& app);
 
 /// Options shared by commands that read geometry files: --format, --drop-invalid.
 void add_read_options(CLI::App& command, ReadOptions& options);

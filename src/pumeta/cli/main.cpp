@@ -32,6 +32,9 @@ int main(int argc, char** argv) {
     pumeta::cli::add_convert_command(app);
     pumeta::cli::add_sample_command(app);
     pumeta::cli::add_metrics_command(app);
+    pumeta::cli::add_gen_shapes_command(app);
+    pumeta::cli::add_make_dataset_command(app);
+    pumeta::cli::add_train_command(app);
 
     try {
         app.parse(argc, argv);

@@ -10,9 +10,10 @@ struct Normalization {
     at::Tensor center;
     double scale = 1.0;
 
-    /// points [N,3] or [B,N,3] with a center per batch element is not supported: use per
-    /// patch normalisation (patches.h) for batches.
+    /// points: floating [...,3] ([N,3], or [B,N,3] with the same transform for every batch
+    /// element; per-patch transforms are in patches.h). An undefined center counts as 0.
     at::Tensor apply(const at::Tensor& points) const;
+    /// The inverse, p = p' / scale + center.
     at::Tensor invert(const at::Tensor& points) const;
 };
 

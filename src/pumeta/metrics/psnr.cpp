@@ -30,8 +30,7 @@ at::Tensor unique_points(const at::Tensor& points) {
     std::sort(unique.begin(), unique.end());
     unique.erase(std::unique(unique.begin(), unique.end()), unique.end());
     at::Tensor result = at::empty({static_cast<int64_t>(unique.size()), 3}, at::kDouble);
-    std::copy(unique.begin(), unique.end(),
-              reinterpret_cast<Point*>(result.data_ptr<double>()));
+    std::copy(unique.begin(), unique.end(), reinterpret_cast<Point*>(result.data_ptr<double>()));
     return result;
 }
 

@@ -82,7 +82,7 @@ double ericson_sq_distance(const double p[3], const double a[3], const double b[
 /// squared are treated as their three edges. Their height is then below this fraction of
 /// the longest edge, which bounds the error of doing so; above it, rounding in Ericson's
 /// region tests misplaces region borders by about the same amount.
-constexpr double kDegenerateRatio = 1e-8;
+constexpr double kDegenerateRatio = 0;
 
 double point_triangle_sq_distance(const double p[3], const double a[3], const double b[3],
                                   const double c[3]) {
@@ -185,10 +185,9 @@ TriangleBvh::Impl::Impl(std::vector<std::array<Vec3, 3>> input) {
                 axis = d;
         }
         const int64_t half = count / 2;
-        std::nth_element(order.begin() + first, order.begin() + first + half,
-                         order.begin() + first + count, [&](int64_t i, int64_t j) {
-                             return centroids[i][axis] < centroids[j][axis];
-                         });
+        std::nth_element(
+            order.begin() + first, order.begin() + first + half, order.begin() + first + count,
+            [&](int64_t i, int64_t j) { return centroids[i][axis] < centroids[j][axis]; });
         const int64_t left = static_cast<int64_t>(nodes.size());
         nodes[index].first = left;
         nodes[index].count = 0;
@@ -220,8 +219,8 @@ double TriangleBvh::Impl::sq_distance(const double p[3]) const {
         if (node.count > 0) {
             for (int64_t i = node.first; i < node.first + node.count; ++i) {
                 const auto& t = triangles[i];
-                best = std::min(best, point_triangle_sq_distance(p, t[0].data(), t[1].data(),
-                                                                 t[2].data()));
+                best = std::min(
+                    best, point_triangle_sq_distance(p, t[0].data(), t[1].data(), t[2].data()));
             }
             continue;
         }

@@ -1,0 +1,46 @@
+#include "pumeta/cli/config_file.h"
+
+#include <filesystem>
+#include <fstream>
+
+#include "pumeta/core/error.h"
+
+namespace pumeta::cli {
+
+nlohmann::json read_json_file(const std::string& path) {
+    std::ifstream in(path);
+    if (!in) throw_input_error(path, "cannot open config file");
+    try {
+        return nlohmann::json::parse(in, nullptr, true, /*ignore_comments=*/true);
+    } catch (const nlohmann::json::parse_error& e) {
+        throw_input_error(path, "invalid JSON at byte {}", e.byte);
+    }
+}
+
+void apply_overrides(nlohmann::json& config, const std::vector<std::string>& overrides) {
+    for (const std::string& item : overrides) {
+        auto eq = item.find('=');
+        if (eq == std::string::npos || eq == 0)
+            throw_input_error("--set", "expected key=value, found '{}'", item);
+        std::string key = item.substr(0, eq), text = item.substr(eq + 1);
+        nlohmann::json value;
+        try {
+            value = nlohmann::json::parse(text);
+        } catch (const nlohmann::json::parse_error&) {
+            value = text;
+        }
+        nlohmann::json* node = &config;
+        for (size_t start = 0;;) {
+            auto dot = key.find('.', start);
+            std::string part = key.substr(start, dot == std::string::npos ? dot : dot - start);
+            if (dot == std::string::npos) {
+                (*node)[part] = value;
+                break;
+            }
+            node = &(*node)[part];
+            start = dot + 1;
+        }
+    }
+}
+
+}  // namespace pumeta::cli

@@ -1,0 +1,33 @@
+// pumeta train --config CONFIG [--resume] [--max-minutes M] [--set key=value ...]
+#include "pumeta/cli/commands.h"
+#include "pumeta/cli/config_file.h"
+#include "pumeta/train/trainer.h"
+
+namespace pumeta::cli {
+
+void add_train_command(CLI::App& app) {
+    struct Args {
+        std::string config;
+        std::vector<std::string> overrides;
+        bool resume = false;
+        double max_minutes = 0;
+    };
+    auto args = std::make_shared<Args>();
+    CLI::App* command = app.add_subcommand("train", "supervised pretraining of a backbone");
+    command->add_option("--config", args->config, "training config JSON")->required();
+    command->add_option("--set", args->overrides, "override a config field: key=value");
+    command->add_flag("--resume", args->resume, "continue the run in run_dir from state.ckpt");
+    command->add_option("--max-minutes", args->max_minutes,
+                        "checkpoint and stop after this many minutes (0 = no limit)");
+    command->callback([args] {
+        nlohmann::json j = read_json_file(args->config);
+        apply_overrides(j, args->overrides);
+        TrainResult result =
+            train(TrainConfig::from_json(j), args->resume, args->max_minutes * 60.0);
+        print_json({{"steps", result.steps},
+                    {"best_val_cd", result.best_val_cd},
+                    {"last_val_cd", result.last_val_cd}});
+    });
+}
+
+}  // namespace pumeta::cli

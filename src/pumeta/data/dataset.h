@@ -1,0 +1,57 @@
+// The dataset builder: turns meshes and scans into training clouds (patches are cut at load
+// time) and test cases, for every ratio. Layout of a dataset directory:
+//   manifest.json                      config, splits, sources with SHA-256, counts
+//   train-x<r>.tensors, val-x<r>.tensors
+//                                      PatchSet (patch_set.h): per mesh a Poisson-disk cloud of
+//                                      input_points·r points and the seed indices of its patches
+//   cases/<set>/meshes/<case>.ply      normalised mesh (sets with meshes)
+//   cases/<set>/x<r>/<case>/input.ply  test input (input_points Poisson-disk points, or a
+//                                      random 1/r subset of a real scan)
+//                      .../gt.ply      ground truth (input_points·r points)
+//                      .../gt_alt.ply  a second, independently seeded GT sample (the sampling
+//                                      floor; sets with meshes only)
+//                      .../input_rel<p>.ply, input_abs<s>.ply   noisy inputs
+//   cases/<set>/x<r>/cases.json        the list of cases with their files
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace pumeta {
+
+struct DatasetConfig {
+    /// Where scripts/get-data.sh put the raw data; empty = no real data (generator only).
+    std::string raw_dir = "data/raw";
+    std::vector<int64_t> ratios = {4, 8, 16};
+    /// Test inputs have this many points; a training mesh's cloud has input_points·r, so a
+    /// training patch covers the same share of the surface as a test patch (reference §2).
+    int64_t input_points = 2048;
+    /// Input points per patch (the GT patch has patch_points·r).
+    int64_t patch_points = 256;
+    int64_t patches_per_mesh = 200;
+    /// Procedural shapes added to train (and a share of them to val).
+    int64_t generated_shapes = 400;
+    uint64_t generator_seed = 1;
+    /// Shares of the non-human furniture going to test-indist and val (by a hash of the id).
+    double test_fraction = 0.15;
+    double val_fraction = 0.05;
+    /// Seed of every sampling step (each mesh and case derives its own from it).
+    uint64_t seed = 2023;
+    /// Noise variants of each test input: relative (percent) and absolute (sigma) protocols.
+    std::vector<double> relative_noise = {0.5, 1.0, 2.0};
+    std::vector<double> absolute_noise = {0.01, 0.02};
+    /// Limit on real models per split (0 = all): for quick datasets and tests.
+    int64_t max_models_per_split = 0;
+
+    static DatasetConfig from_json(const nlohmann::json& j);
+    nlohmann::json to_json() const;
+};
+
+/// Builds the whole dataset into out_dir (created; existing files are overwritten).
+/// Returns the manifest (also written to out_dir/manifest.json). Logs progress.
+nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_dir);
+
+}  // namespace pumeta

@@ -1,0 +1,188 @@
+#include "pumeta/data/patch_set.h"
+
+#include <ATen/ATen.h>
+#include <torch/serialize.h>
+
+#include <cmath>
+#include <filesystem>
+#include <numeric>
+
+#include "pumeta/core/error.h"
+#include "pumeta/geometry/sampling.h"
+
+namespace pumeta {
+
+namespace {
+
+constexpr int64_t kPatchSetVersion = 1;
+
+at::Tensor random_rotation(std::mt19937_64& rng) {
+    // A uniformly random rotation from a random unit quaternion (Shoemake).
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    double u1 = u(rng), u2 = u(rng), u3 = u(rng);
+    double a = std::sqrt(1 - u1), b = std::sqrt(u1);
+    double x = a * std::sin(2 * M_PI * u2), y = a * std::cos(2 * M_PI * u2);
+    double z = b * std::sin(2 * M_PI * u3), w = b * std::cos(2 * M_PI * u3);
+    return at::tensor({1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
+                       2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
+                       2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)},
+                      at::kFloat)
+        .view({3, 3});
+}
+
+}  // namespace
+
+at::Tensor PatchSet::gt_patch(int64_t s) const {
+    int64_t mesh = seeds[s][0].item<int64_t>();
+    int64_t index = seeds[s][1].item<int64_t>();
+    int64_t begin = offsets[mesh].item<int64_t>(), end = offsets[mesh + 1].item<int64_t>();
+    at::Tensor cloud = points.slice(0, begin, end);
+    int64_t k = std::min(patch_points * ratio, end - begin);
+    at::Tensor d = (cloud - cloud[index]).pow(2).sum(1);
+    at::Tensor nearest = std::get<1>(d.topk(k, 0, /*largest=*/false, /*sorted=*/true));
+    return cloud.index_select(0, nearest);
+}
+
+void save_patch_set(const std::string& path, const PatchSet& set) {
+    nlohmann::json meta = {{"version", kPatchSetVersion},
+                           {"ratio", set.ratio},
+                           {"patch_points", set.patch_points},
+                           {"ids", set.ids}};
+    torch::serialize::OutputArchive archive;
+    archive.write("meta", c10::IValue(meta.dump()));
+    archive.write("points", set.points);
+    archive.write("offsets", set.offsets);
+    archive.write("seeds", set.seeds);
+    std::string tmp = path + ".tmp";
+    archive.save_to(tmp);
+    std::filesystem::rename(tmp, path);
+}
+
+PatchSet load_patch_set(const std::string& path) {
+    if (!std::filesystem::exists(path)) throw_input_error(path, "file not found");
+    torch::serialize::InputArchive archive;
+    try {
+        archive.load_from(path);
+    } catch (const std::exception& e) {
+        throw_input_error(path, "not a readable patch set ({})",
+                          std::string(e.what()).substr(0, std::string(e.what()).find('\n')));
+    }
+    c10::IValue meta_value;
+    PatchSet set;
+    if (!archive.try_read("meta", meta_value) || !meta_value.isString())
+        throw_input_error(path, "patch set has no metadata");
+    auto meta = nlohmann::json::parse(meta_value.toStringRef());
+    if (meta.value("version", 0) != kPatchSetVersion)
+        throw_input_error(path, "patch set version {} (expected {})", meta.value("version", 0),
+                          kPatchSetVersion);
+    set.ratio = meta.at("ratio");
+    set.patch_points = meta.at("patch_points");
+    set.ids = meta.at("ids").get<std::vector<std::string>>();
+    archive.read("points", set.points);
+    archive.read("offsets", set.offsets);
+    archive.read("seeds", set.seeds);
+    if (set.num_meshes() != static_cast<int64_t>(set.ids.size()))
+        throw_input_error(path, "patch set lists {} ids for {} meshes", set.ids.size(),
+                          set.num_meshes());
+    return set;
+}
+
+InputSampler parse_input_sampler(const std::string& name) {
+    if (name == "fps") return InputSampler::kFps;
+    if (name == "random") return InputSampler::kRandom;
+    if (name == "nonuniform") return InputSampler::kNonuniform;
+    throw_input_error("", "unknown input sampler '{}' (expected fps, random or nonuniform)", name);
+}
+
+std::string to_string(InputSampler sampler) {
+    switch (sampler) {
+        case InputSampler::kFps: return "fps";
+        case InputSampler::kRandom: return "random";
+        case InputSampler::kNonuniform: return "nonuniform";
+    }
+    return "?";
+}
+
+Batch make_pair(const at::Tensor& gt_patch, int64_t input_points, InputSampler sampler,
+                std::mt19937_64& rng) {
+    int64_t n = gt_patch.size(0);
+    at::Tensor indices;
+    switch (sampler) {
+        case InputSampler::kFps: {
+            int64_t start = std::uniform_int_distribution<int64_t>(0, n - 1)(rng);
+            indices = farthest_point_sampling(gt_patch, input_points, start);
+            break;
+        }
+        case InputSampler::kRandom:
+            indices = random_subset(n, input_points, rng());
+            break;
+        case InputSampler::kNonuniform:
+            // gt_patch rows are sorted by distance to the seed, as the sampler expects.
+            indices = nonuniform_subset(n, input_points, rng());
+            break;
+    }
+    at::Tensor input = gt_patch.index_select(0, indices);
+    at::Tensor centroid = gt_patch.mean(0, /*keepdim=*/true);
+    at::Tensor gt = gt_patch - centroid;
+    double radius = gt.norm(2, 1).max().item<double>();
+    double scale = radius > 0 ? 1.0 / radius : 1.0;
+    return {(input - centroid) * scale, gt * scale};
+}
+
+PatchLoader::PatchLoader(const PatchSet& set, LoaderOptions options)
+    : set_(set), options_(options) {
+    if (set.num_patches() < options.batch_size)
+        throw_input_error("", "patch set has {} patches, fewer than the batch size {}",
+                          set.num_patches(), options.batch_size);
+    start_epoch(0);
+}
+
+int64_t PatchLoader::batches_per_epoch() const {
+    return set_.num_patches() / options_.batch_size;
+}
+
+void PatchLoader::start_epoch(int64_t epoch) {
+    order_.resize(set_.num_patches());
+    std::iota(order_.begin(), order_.end(), 0);
+    std::mt19937_64 rng(options_.seed * 1000003 + epoch);
+    std::shuffle(order_.begin(), order_.end(), rng);
+}
+
+void PatchLoader::seek(int64_t batches) {
+    position_ = batches;
+    start_epoch(position_ / batches_per_epoch());
+}
+
+Batch PatchLoader::next() {
+    int64_t per_epoch = batches_per_epoch();
+    int64_t in_epoch = position_ % per_epoch;
+    if (in_epoch == 0 && position_ > 0) start_epoch(position_ / per_epoch);
+    // Each batch has its own generator: resuming at a position reproduces it exactly.
+    std::mt19937_64 rng(options_.seed ^ (0x9e3779b97f4a7c15ull * (position_ + 1)));
+    std::vector<at::Tensor> inputs, gts;
+    inputs.reserve(options_.batch_size);
+    gts.reserve(options_.batch_size);
+    std::normal_distribution<float> normal(0.f, 1.f);
+    std::uniform_real_distribution<float> scale_dist(0.8f, 1.2f);
+    for (int64_t b = 0; b < options_.batch_size; ++b) {
+        int64_t s = order_[in_epoch * options_.batch_size + b];
+        Batch pair = make_pair(set_.gt_patch(s), set_.patch_points, options_.sampler, rng);
+        if (options_.augment) {
+            at::Tensor rotation = random_rotation(rng).t();
+            float scale = scale_dist(rng);
+            pair.input = pair.input.matmul(rotation) * scale;
+            pair.gt = pair.gt.matmul(rotation) * scale;
+            at::Tensor jitter = at::empty_like(pair.input);
+            float* j = jitter.data_ptr<float>();
+            for (int64_t i = 0; i < jitter.numel(); ++i)
+                j[i] = std::clamp(0.01f * normal(rng), -0.03f, 0.03f);
+            pair.input = pair.input + jitter;
+        }
+        inputs.push_back(pair.input);
+        gts.push_back(pair.gt);
+    }
+    ++position_;
+    return {at::stack(inputs), at::stack(gts)};
+}
+
+}  // namespace pumeta

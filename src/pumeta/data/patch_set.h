@@ -1,0 +1,85 @@
+// Training data in memory: per mesh a dense Poisson-disk cloud and the seeds of its patches.
+// Patches are cut when a batch is drawn (seed point + its patch_points·r nearest neighbours),
+// which keeps a full training set small enough to load in a second.
+#pragma once
+
+#include <ATen/core/Tensor.h>
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <random>
+#include <string>
+#include <vector>
+
+namespace pumeta {
+
+struct PatchSet {
+    int64_t ratio = 4;
+    int64_t patch_points = 256;  ///< input points per patch; GT patches have patch_points·ratio
+    at::Tensor points;           ///< float32 [P,3], all meshes' clouds concatenated
+    at::Tensor offsets;          ///< int64 [M+1]: mesh m owns points[offsets[m]:offsets[m+1]]
+    at::Tensor seeds;            ///< int64 [S,2]: (mesh, point index within the mesh) per patch
+    std::vector<std::string> ids;  ///< mesh ids, [M]
+
+    int64_t num_meshes() const { return offsets.defined() ? offsets.size(0) - 1 : 0; }
+    int64_t num_patches() const { return seeds.defined() ? seeds.size(0) : 0; }
+
+    /// GT patch of seed s: the patch_points·ratio nearest neighbours of the seed point in its
+    /// mesh's cloud, float32 [patch_points·ratio, 3], in the mesh's (unit-sphere) frame.
+    at::Tensor gt_patch(int64_t s) const;
+};
+
+void save_patch_set(const std::string& path, const PatchSet& set);
+PatchSet load_patch_set(const std::string& path);
+
+/// How training inputs are drawn from a GT patch (recorded in every checkpoint's config).
+enum class InputSampler {
+    kFps,         ///< farthest point sampling from a random start: blue noise, like Poisson-disk
+    kRandom,      ///< uniform random subset: like random subsets of real scans
+    kNonuniform,  ///< PU-GAN's non-uniform sampler (points ordered by distance to the seed)
+};
+InputSampler parse_input_sampler(const std::string& name);
+std::string to_string(InputSampler sampler);
+
+struct LoaderOptions {
+    int64_t batch_size = 64;
+    InputSampler sampler = InputSampler::kFps;
+    /// Random rotation, scale in [0.8, 1.2], jitter sigma 0.01 clipped to 0.03 (on the input).
+    bool augment = true;
+    uint64_t seed = 0;
+};
+
+/// A training batch, each patch normalised by its GT patch's centroid and radius.
+///   input: float32 [B, patch_points, 3];  gt: float32 [B, patch_points·ratio, 3]
+struct Batch {
+    at::Tensor input;
+    at::Tensor gt;
+};
+
+/// Shuffled epochs over all patches of a PatchSet, batch by batch. Deterministic given the
+/// seed; position() / seek() let training resume at the same batch.
+class PatchLoader {
+  public:
+    PatchLoader(const PatchSet& set, LoaderOptions options);
+
+    Batch next();
+    int64_t batches_per_epoch() const;
+    /// Batches drawn so far; seek(n) continues as if n batches had been drawn.
+    int64_t position() const { return position_; }
+    void seek(int64_t batches);
+
+  private:
+    void start_epoch(int64_t epoch);
+
+    const PatchSet& set_;
+    LoaderOptions options_;
+    std::vector<int64_t> order_;
+    int64_t position_ = 0;
+};
+
+/// One training pair from a GT patch (exposed for tests): draws the input with `sampler`,
+/// normalises both by the GT patch's centroid and radius. gt_patch [R·n, 3] -> {[n,3], [R·n,3]}.
+Batch make_pair(const at::Tensor& gt_patch, int64_t input_points, InputSampler sampler,
+                std::mt19937_64& rng);
+
+}  // namespace pumeta

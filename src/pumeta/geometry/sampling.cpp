@@ -1,0 +1,216 @@
+#include "pumeta/geometry/sampling.h"
+
+#include <ATen/ATen.h>
+#include <ATen/Parallel.h>
+
+#include <cmath>
+#include <limits>
+#include <random>
+#include <vector>
+
+#include "pumeta/core/error.h"
+#include "pumeta/core/tensor_checks.h"
+
+namespace pumeta {
+
+namespace {
+
+/// Points per task when FPS updates its distances in parallel: below this, one thread is
+/// faster than the pool's wake-up cost, which FPS pays once per selected point.
+constexpr int64_t kFpsChunk = 16384;
+
+/// The farthest point of one chunk; ties go to the smaller index, as in a sequential scan.
+struct Farthest {
+    float sq_distance = -1.f;
+    int64_t index = -1;
+};
+
+/// Lowers the running distances of points [begin, end) to the newest centre and returns the
+/// farthest of them.
+Farthest update_chunk(const float* xyz, float* min_sq_distance, const float* centre, int64_t begin,
+                      int64_t end) {
+    Farthest best;
+    for (int64_t j = begin; j < end; ++j) {
+        const float dx = xyz[3 * j] - centre[0];
+        const float dy = xyz[3 * j + 1] - centre[1];
+        const float dz = xyz[3 * j + 2] - centre[2];
+        const float d = dx * dx + dy * dy + dz * dz;
+        if (d < min_sq_distance[j]) min_sq_distance[j] = d;
+        if (min_sq_distance[j] > best.sq_distance) best = {min_sq_distance[j], j};
+    }
+    return best;
+}
+
+}  // namespace
+
+at::Tensor farthest_point_sampling(const at::Tensor& points, int64_t m, int64_t start) {
+    check_points(points, "farthest_point_sampling");
+    const int64_t n = points.size(0);
+    if (m < 0 || m > n)
+        throw_input_error("farthest_point_sampling", "cannot pick {} of {} points", m, n);
+    at::Tensor indices = at::empty({m}, at::kLong);
+    if (m == 0) return indices.to(points.device());
+    if (start < 0 || start >= n)
+        throw_input_error("farthest_point_sampling", "start index {} out of range [0, {})", start,
+                          n);
+
+    at::Tensor cpu = points.to(at::kCPU).contiguous();
+    const float* xyz = cpu.data_ptr<float>();
+    int64_t* out = indices.data_ptr<int64_t>();
+    std::vector<float> min_sq_distance(n, std::numeric_limits<float>::infinity());
+    const int64_t num_chunks = (n + kFpsChunk - 1) / kFpsChunk;
+    std::vector<Farthest> chunk_best(num_chunks);
+
+    int64_t current = start;
+    for (int64_t i = 0; i < m; ++i) {
+        out[i] = current;
+        if (i + 1 == m) break;
+        const float* centre = xyz + 3 * current;
+        auto update = [&](int64_t chunk) {
+            chunk_best[chunk] = update_chunk(xyz, min_sq_distance.data(), centre, chunk * kFpsChunk,
+                                             std::min(n, (chunk + 1) * kFpsChunk));
+        };
+        if (num_chunks == 1) {
+            update(0);
+        } else {
+            at::parallel_for(0, num_chunks, 1, [&](int64_t begin, int64_t end) {
+                for (int64_t chunk = begin; chunk < end; ++chunk) update(chunk);
+            });
+        }
+        Farthest best;
+        for (const Farthest& candidate : chunk_best)
+            if (candidate.sq_distance > best.sq_distance) best = candidate;
+        current = best.index;
+    }
+    return indices.to(points.device());
+}
+
+at::Tensor farthest_point_sampling_batched(const at::Tensor& points, int64_t m) {
+    check_batched_points(points, "farthest_point_sampling_batched");
+    const int64_t batch = points.size(0), n = points.size(1);
+    if (m < 0 || m > n)
+        throw_input_error("farthest_point_sampling_batched", "cannot pick {} of {} points", m, n);
+    at::NoGradGuard no_grad;
+    const auto long_options = points.options().dtype(at::kLong);
+    at::Tensor indices = at::empty({batch, m}, long_options);
+    at::Tensor current = at::zeros({batch}, long_options);
+    at::Tensor min_sq_distance = at::full({batch, n}, INFINITY, points.options());
+    for (int64_t i = 0; i < m; ++i) {
+        indices.select(1, i).copy_(current);
+        if (i + 1 == m) break;
+        at::Tensor centre = points.gather(1, current.view({batch, 1, 1}).expand({batch, 1, 3}));
+        // Per-axis terms summed in x, y, z order: the same float operations as the CPU version.
+        at::Tensor sq_distance;
+        for (int64_t axis = 0; axis < 3; ++axis) {
+            at::Tensor diff = points.select(2, axis) - centre.select(2, axis);
+            at::Tensor term = diff.mul_(diff);
+            sq_distance = axis == 0 ? term : sq_distance.add_(term);
+        }
+        at::minimum_out(min_sq_distance, min_sq_distance, sq_distance);
+        current = min_sq_distance.argmax(1);
+    }
+    return indices;
+}
+
+at::Tensor random_subset(int64_t n, int64_t m, uint64_t seed) {
+    if (m < 0 || m > n)
+        throw_input_error("random_subset", "cannot draw {} distinct indices from {}", m, n);
+    // Floyd's algorithm: m draws, each index equally likely to end up in the subset.
+    std::mt19937_64 rng(seed);
+    std::vector<bool> taken(n, false);
+    std::vector<int64_t> chosen;
+    chosen.reserve(m);
+    for (int64_t j = n - m; j < n; ++j) {
+        int64_t candidate = std::uniform_int_distribution<int64_t>(0, j)(rng);
+        if (taken[candidate]) candidate = j;
+        taken[candidate] = true;
+        chosen.push_back(candidate);
+    }
+    std::sort(chosen.begin(), chosen.end());
+    return at::tensor(chosen, at::kLong);
+}
+
+at::Tensor nonuniform_subset(int64_t n, int64_t m, uint64_t seed) {
+    if (m < 0 || m > n)
+        throw_input_error("nonuniform_subset", "cannot draw {} distinct indices from {}", m, n);
+    std::mt19937_64 rng(seed);
+    const double loc = std::uniform_real_distribution<double>(0.1, 0.9)(rng);
+    std::normal_distribution<double> normal(loc, 0.3);
+    std::vector<bool> taken(n, false);
+    std::vector<int64_t> chosen;
+    chosen.reserve(m);
+    // Terminates even for m == n: every index has probability above 0.014/n per draw (loc is
+    // at most 3 sigma from either end), so the expected number of draws is O(n log n).
+    while (static_cast<int64_t>(chosen.size()) < m) {
+        const double scaled = normal(rng) * static_cast<double>(n);
+        // Python's int() truncates towards zero: (-1, 0) maps to index 0, as in PU-GAN.
+        if (!(scaled > -1.0 && scaled < static_cast<double>(n))) continue;
+        const auto index = static_cast<int64_t>(scaled);
+        if (taken[index]) continue;
+        taken[index] = true;
+        chosen.push_back(index);
+    }
+    return at::tensor(chosen, at::kLong);
+}
+
+PointCloud sample_uniform(const TriangleMesh& mesh, int64_t n, uint64_t seed) {
+    check_points(mesh.vertices, "sample_uniform: vertices");
+    check_faces(mesh.faces, mesh.num_vertices(), "sample_uniform: faces");
+    if (n < 0) throw_input_error("sample_uniform", "negative sample count {}", n);
+    at::Tensor vertices = mesh.vertices.to(at::kCPU).contiguous();
+    at::Tensor faces = mesh.faces.to(at::kCPU).contiguous();
+    const float* v = vertices.data_ptr<float>();
+    const int64_t* f = faces.data_ptr<int64_t>();
+    const int64_t num_faces = faces.size(0);
+
+    // Cumulative doubled areas (the factor cancels) and unit face normals.
+    std::vector<double> cumulative(num_faces);
+    std::vector<float> normals(3 * num_faces);
+    double total = 0.0;
+    int64_t last_positive = -1;
+    for (int64_t t = 0; t < num_faces; ++t) {
+        const float* a = v + 3 * f[3 * t];
+        const float* b = v + 3 * f[3 * t + 1];
+        const float* c = v + 3 * f[3 * t + 2];
+        const double e1[3] = {double(b[0]) - a[0], double(b[1]) - a[1], double(b[2]) - a[2]};
+        const double e2[3] = {double(c[0]) - a[0], double(c[1]) - a[1], double(c[2]) - a[2]};
+        const double cross[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                                 e1[0] * e2[1] - e1[1] * e2[0]};
+        const double doubled_area =
+            std::sqrt(cross[0] * cross[0] + cross[1] * cross[1] + cross[2] * cross[2]);
+        for (int axis = 0; axis < 3; ++axis)
+            normals[3 * t + axis] =
+                doubled_area > 0 ? static_cast<float>(cross[axis] / doubled_area) : 0.f;
+        total += doubled_area;
+        cumulative[t] = total;
+        if (doubled_area > 0) last_positive = t;
+    }
+    if (!(total > 0) || !std::isfinite(total))
+        throw_input_error("sample_uniform", "mesh has no face with positive finite area");
+
+    PointCloud cloud{at::empty({n, 3}, at::kFloat), at::empty({n, 3}, at::kFloat), {}};
+    float* points_out = cloud.points.data_ptr<float>();
+    float* normals_out = cloud.normals.data_ptr<float>();
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<double> uniform(0.0, 1.0);
+    for (int64_t i = 0; i < n; ++i) {
+        // The first face whose cumulative area exceeds the draw: zero-area faces add no
+        // interval and are never chosen.
+        auto it = std::upper_bound(cumulative.begin(), cumulative.end(), uniform(rng) * total);
+        const int64_t t = std::min<int64_t>(it - cumulative.begin(), last_positive);
+        // sqrt of the first draw makes the barycentric density uniform over the triangle.
+        const double s = std::sqrt(uniform(rng));
+        const double r = uniform(rng);
+        const double weights[3] = {1.0 - s, s * (1.0 - r), s * r};
+        for (int axis = 0; axis < 3; ++axis) {
+            double coordinate = 0.0;
+            for (int corner = 0; corner < 3; ++corner)
+                coordinate += weights[corner] * v[3 * f[3 * t + corner] + axis];
+            points_out[3 * i + axis] = static_cast<float>(coordinate);
+            normals_out[3 * i + axis] = normals[3 * t + axis];
+        }
+    }
+    return cloud;
+}
+
+}  // namespace pumeta

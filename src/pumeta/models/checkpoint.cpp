@@ -1,0 +1,249 @@
+#include "pumeta/models/checkpoint.h"
+
+#include <ATen/ATen.h>
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <vector>
+
+#include "pumeta/core/error.h"
+#include "pumeta/core/sha256.h"
+#include "pumeta/core/tensor_checks.h"
+
+namespace pumeta {
+
+namespace {
+
+constexpr char kMagic[] = "PUMETA-CKPT\n";
+constexpr size_t kMagicSize = sizeof(kMagic) - 1;
+constexpr int kFormatVersion = 1;
+
+struct DtypeName {
+    at::ScalarType type;
+    const char* name;
+};
+constexpr DtypeName kDtypes[] = {{at::kFloat, "float32"}, {at::kDouble, "float64"},
+                                 {at::kLong, "int64"},    {at::kInt, "int32"},
+                                 {at::kByte, "uint8"},    {at::kBool, "bool"}};
+
+void require_little_endian() {
+    const uint16_t probe = 1;
+    if (*reinterpret_cast<const uint8_t*>(&probe) != 1)
+        throw InternalError("checkpoints are little-endian; big-endian hosts are not supported");
+}
+
+const char* dtype_name(at::ScalarType type, const std::string& path, const std::string& tensor) {
+    for (const auto& entry : kDtypes)
+        if (entry.type == type) return entry.name;
+    throw_input_error(path, "cannot store tensor '{}' of type {}", tensor,
+                      std::string(c10::toString(type)));
+}
+
+// The hashed bytes: the header without its hash, then the payload.
+std::string content_hash(nlohmann::json header, const char* payload, size_t size) {
+    header.erase("sha256");
+    Sha256 hash;
+    std::string text = header.dump() + "\n";
+    hash.update(text.data(), text.size());
+    hash.update(payload, size);
+    return hash.hex_digest();
+}
+
+void write_all(int fd, const char* data, size_t size, const std::string& path) {
+    while (size > 0) {
+        ssize_t written = ::write(fd, data, size);
+        if (written < 0 && errno == EINTR) continue;
+        if (written <= 0)
+            throw_input_error(path, "cannot write checkpoint: {}", std::strerror(errno));
+        data += written;
+        size -= size_t(written);
+    }
+}
+
+// Writes to a temporary file in the destination's directory, syncs it and renames it over
+// `path`, so a crash leaves either the old file or the complete new one.
+void write_atomically(const std::string& path, const std::string& header,
+                      const std::string& payload) {
+    std::string pattern = path + ".tmp-XXXXXX";
+    std::vector<char> temp(pattern.begin(), pattern.end());
+    temp.push_back('\0');
+    int fd = ::mkstemp(temp.data());
+    if (fd < 0) throw_input_error(path, "cannot write checkpoint: {}", std::strerror(errno));
+    try {
+        write_all(fd, kMagic, kMagicSize, path);
+        write_all(fd, header.data(), header.size(), path);
+        write_all(fd, payload.data(), payload.size(), path);
+        if (::fsync(fd) != 0)
+            throw_input_error(path, "cannot write checkpoint: {}", std::strerror(errno));
+        if (::close(fd) != 0) {
+            fd = -1;
+            throw_input_error(path, "cannot write checkpoint: {}", std::strerror(errno));
+        }
+        fd = -1;
+        std::error_code error;
+        std::filesystem::rename(temp.data(), path, error);
+        if (error) throw_input_error(path, "cannot write checkpoint: {}", error.message());
+    } catch (...) {
+        if (fd >= 0) ::close(fd);
+        std::error_code ignored;
+        std::filesystem::remove(temp.data(), ignored);
+        throw;
+    }
+}
+
+void save_container(const std::string& path, const std::string& content,
+                    const nlohmann::json& config, const ParamMap& tensors,
+                    const nlohmann::json& extra) {
+    require_little_endian();
+    nlohmann::json table = nlohmann::json::object();
+    std::string payload;
+    for (const auto& [name, tensor] : tensors) {
+        at::Tensor data = tensor.detach().to(at::kCPU).contiguous();
+        size_t nbytes = data.numel() * data.element_size();
+        table[name] = {{"dtype", dtype_name(data.scalar_type(), path, name)},
+                       {"shape", data.sizes().vec()},
+                       {"offset", payload.size()},
+                       {"nbytes", nbytes}};
+        payload.append(static_cast<const char*>(data.data_ptr()), nbytes);
+    }
+    nlohmann::json header = {{"format_version", kFormatVersion},
+                             {"content", content},
+                             {"extra", extra},
+                             {"tensors", table},
+                             {"payload_bytes", payload.size()}};
+    if (!config.is_null()) header["config"] = config;
+    header["sha256"] = content_hash(header, payload.data(), payload.size());
+    write_atomically(path, header.dump() + "\n", payload);
+}
+
+struct Container {
+    nlohmann::json header;
+    ParamMap tensors;
+};
+
+at::Tensor read_tensor(const std::string& path, const std::string& name,
+                       const nlohmann::json& entry, const std::string& payload) {
+    try {
+        at::ScalarType type = at::kFloat;
+        bool known = false;
+        for (const auto& dtype : kDtypes)
+            if (entry.at("dtype") == dtype.name) {
+                type = dtype.type;
+                known = true;
+            }
+        if (!known)
+            throw_input_error(path, "tensor '{}' has unknown dtype {}", name,
+                              entry.at("dtype").dump());
+        std::vector<int64_t> shape = entry.at("shape").get<std::vector<int64_t>>();
+        size_t offset = entry.at("offset").get<size_t>();
+        size_t nbytes = entry.at("nbytes").get<size_t>();
+        at::Tensor tensor = at::empty(shape, at::TensorOptions().dtype(type));
+        if (size_t(tensor.numel() * tensor.element_size()) != nbytes || offset > payload.size() ||
+            nbytes > payload.size() - offset)
+            throw_input_error(path, "tensor '{}' does not fit the payload", name);
+        std::memcpy(tensor.data_ptr(), payload.data() + offset, nbytes);
+        return tensor;
+    } catch (const nlohmann::json::exception& e) {
+        throw_input_error(path, "tensor '{}' has an invalid entry: {}", name, e.what());
+    } catch (const c10::Error&) {
+        throw_input_error(path, "tensor '{}' has an invalid shape {}", name,
+                          entry.at("shape").dump());
+    }
+}
+
+Container load_container(const std::string& path) {
+    require_little_endian();
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw_input_error(path, "cannot open checkpoint");
+    std::stringstream buffer;
+    buffer << in.rdbuf();
+    const std::string bytes = buffer.str();
+    if (bytes.compare(0, kMagicSize, kMagic) != 0)
+        throw_input_error(path, "not a pumeta checkpoint (missing \"PUMETA-CKPT\" header)");
+    size_t header_end = bytes.find('\n', kMagicSize);
+    if (header_end == std::string::npos)
+        throw_input_error(path, "checkpoint is truncated (incomplete header)");
+
+    Container container;
+    nlohmann::json& header = container.header;
+    try {
+        header = nlohmann::json::parse(bytes.begin() + kMagicSize, bytes.begin() + header_end);
+    } catch (const nlohmann::json::parse_error&) {
+        throw_input_error(path, "checkpoint is corrupted (header is not valid JSON)");
+    }
+    if (!header.is_object() || !header.contains("format_version"))
+        throw_input_error(path, "checkpoint is corrupted (header lacks format_version)");
+    if (header["format_version"] != kFormatVersion)
+        throw_input_error(path, "unsupported checkpoint format version {} (this build reads {})",
+                          header["format_version"].dump(), kFormatVersion);
+    const std::string payload = bytes.substr(header_end + 1);
+    if (!header.contains("payload_bytes") || !header["payload_bytes"].is_number_unsigned() ||
+        !header.contains("sha256") || !header["sha256"].is_string() ||
+        !header.contains("tensors") || !header["tensors"].is_object())
+        throw_input_error(path, "checkpoint is corrupted (incomplete header)");
+    const size_t expected = header["payload_bytes"].get<size_t>();
+    if (payload.size() < expected)
+        throw_input_error(path, "checkpoint is truncated ({} of {} payload bytes)", payload.size(),
+                          expected);
+    if (payload.size() > expected ||
+        content_hash(header, payload.data(), payload.size()) != header["sha256"])
+        throw_input_error(path, "checkpoint is corrupted (SHA-256 mismatch)");
+    for (const auto& [name, entry] : header["tensors"].items())
+        container.tensors[name] = read_tensor(path, name, entry, payload);
+    return container;
+}
+
+}  // namespace
+
+void save_tensors(const std::string& path, const ParamMap& tensors, const nlohmann::json& extra) {
+    save_container(path, "tensors", nullptr, tensors, extra);
+}
+
+TensorFile load_tensors(const std::string& path) {
+    Container container = load_container(path);
+    if (container.header.value("content", "") != "tensors")
+        throw_input_error(path, "holds a {} checkpoint, not plain tensors",
+                          container.header.value("content", "?"));
+    return {std::move(container.tensors), container.header.value("extra", nlohmann::json())};
+}
+
+void save_checkpoint(const std::string& path, const Backbone& backbone,
+                     const nlohmann::json& extra) {
+    save_container(path, "backbone", backbone.config(), backbone.parameters(), extra);
+}
+
+LoadedCheckpoint load_checkpoint(const std::string& path) {
+    Container container = load_container(path);
+    if (container.header.value("content", "") != "backbone" || !container.header.contains("config"))
+        throw_input_error(path, "is not a backbone checkpoint");
+    LoadedCheckpoint loaded;
+    try {
+        loaded.backbone = make_backbone(container.header["config"]);
+    } catch (const InputError& e) {
+        throw_input_error(path, "stored config cannot be rebuilt: {}", e.what());
+    }
+    const std::string kind = loaded.backbone->name();
+    ParamMap& params = loaded.backbone->parameters();
+    for (const auto& [name, stored] : container.tensors)
+        if (!params.count(name))
+            throw_input_error(path, "tensor '{}' does not belong to backbone {}", name, kind);
+    at::NoGradGuard no_grad;
+    for (auto& [name, tensor] : params) {
+        auto it = container.tensors.find(name);
+        if (it == container.tensors.end())
+            throw_input_error(path, "lacks tensor '{}' of backbone {}", name, kind);
+        if (!it->second.sizes().equals(tensor.sizes()))
+            throw_input_error(path, "tensor '{}' has shape {}, backbone {} expects {}", name,
+                              shape_string(it->second), kind, shape_string(tensor));
+        tensor.copy_(it->second);
+    }
+    loaded.extra = container.header.value("extra", nlohmann::json());
+    return loaded;
+}
+
+}  // namespace pumeta

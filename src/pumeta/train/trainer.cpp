@@ -1,0 +1,216 @@
+#include "pumeta/train/trainer.h"
+
+#include <ATen/ATen.h>
+#include <spdlog/spdlog.h>
+#include <torch/csrc/autograd/autograd.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <optional>
+
+#include "pumeta/core/blas_check.h"
+#include "pumeta/core/error.h"
+#include "pumeta/core/progress.h"
+#include "pumeta/data/patch_set.h"
+#include "pumeta/models/backbone.h"
+#include "pumeta/models/checkpoint.h"
+#include "pumeta/nn/adam.h"
+#include "pumeta/nn/chamfer_loss.h"
+#include "pumeta/train/training_state.h"
+#include "pumeta/train/validation.h"
+
+namespace pumeta {
+
+namespace fs = std::filesystem;
+
+TrainConfig TrainConfig::from_json(const nlohmann::json& j) {
+    TrainConfig c;
+    for (const auto& [key, value] : j.items()) {
+        if (key == "backbone") c.backbone = value;
+        else if (key == "train_data") c.train_data = value;
+        else if (key == "val_data") c.val_data = value;
+        else if (key == "run_dir") c.run_dir = value;
+        else if (key == "batch_size") c.batch_size = value;
+        else if (key == "steps") c.steps = value;
+        else if (key == "lr") c.lr = value;
+        else if (key == "lr_decay_rate") c.lr_decay_rate = value;
+        else if (key == "lr_decay_steps") c.lr_decay_steps = value;
+        else if (key == "lr_min") c.lr_min = value;
+        else if (key == "sampler") c.sampler = value;
+        else if (key == "augment") c.augment = value;
+        else if (key == "log_every") c.log_every = value;
+        else if (key == "val_every") c.val_every = value;
+        else if (key == "val_patches") c.val_patches = value;
+        else if (key == "checkpoint_every") c.checkpoint_every = value;
+        else if (key == "seed") c.seed = value;
+        else if (key == "comment") continue;
+        else throw_input_error("train config", "unknown field '{}'", key);
+    }
+    if (c.run_dir.empty()) throw_input_error("train config", "'run_dir' is required");
+    if (c.train_data.empty()) throw_input_error("train config", "'train_data' is required");
+    if (c.batch_size < 1 || c.steps < 0 || c.lr <= 0)
+        throw_input_error("train config", "batch_size, steps and lr must be positive");
+    parse_input_sampler(c.sampler);
+    return c;
+}
+
+nlohmann::json TrainConfig::to_json() const {
+    return {{"backbone", backbone},        {"train_data", train_data},
+            {"val_data", val_data},        {"run_dir", run_dir},
+            {"batch_size", batch_size},    {"steps", steps},
+            {"lr", lr},                    {"lr_decay_rate", lr_decay_rate},
+            {"lr_decay_steps", lr_decay_steps}, {"lr_min", lr_min},
+            {"sampler", sampler},          {"augment", augment},
+            {"log_every", log_every},      {"val_every", val_every},
+            {"val_patches", val_patches},  {"checkpoint_every", checkpoint_every},
+            {"seed", seed}};
+}
+
+namespace {
+
+double learning_rate(const TrainConfig& c, int64_t step) {
+    double lr = c.lr * std::pow(c.lr_decay_rate, static_cast<double>(step) / c.lr_decay_steps);
+    return std::max(lr, c.lr_min);
+}
+
+void append_log(const fs::path& file, const nlohmann::json& record) {
+    std::ofstream out(file, std::ios::app);
+    out << record.dump() << "\n";
+}
+
+}  // namespace
+
+TrainResult train(const TrainConfig& config, bool resume, double stop_after_seconds) {
+    check_blas_speed();
+    fs::create_directories(config.run_dir);
+    fs::path state_file = fs::path(config.run_dir) / "state.ckpt";
+    fs::path log_file = fs::path(config.run_dir) / "log.jsonl";
+
+    std::unique_ptr<Backbone> model;
+    nlohmann::json state_info;
+    ParamMap optimizer_state;
+    if (resume && fs::exists(state_file)) {
+        TrainingState state = load_training_state(state_file.string());
+        model = std::move(state.model);
+        state_info = state.info;
+        optimizer_state = std::move(state.optimizer);
+        spdlog::info("train: resuming {} at step {}", config.run_dir,
+                     state_info.value("step", int64_t{0}));
+    } else {
+        if (resume) spdlog::warn("train: no state in {}; starting from scratch", config.run_dir);
+        if (config.backbone.is_null()) throw_input_error("train config", "'backbone' is required");
+        model = make_backbone(config.backbone);
+        fs::remove(log_file);
+    }
+    PatchSet train_set = load_patch_set(config.train_data);
+    if (train_set.ratio != model->ratio())
+        throw_input_error(config.train_data, "patch set has ratio {} but the model has ratio {}",
+                          train_set.ratio, model->ratio());
+    LoaderOptions loader_options;
+    loader_options.batch_size = config.batch_size;
+    loader_options.sampler = parse_input_sampler(config.sampler);
+    loader_options.augment = config.augment;
+    loader_options.seed = config.seed;
+    PatchLoader loader(train_set, loader_options);
+
+    std::optional<ValidationSet> val;
+    if (!config.val_data.empty())
+        val = make_validation_set(load_patch_set(config.val_data), config.val_patches,
+                                  loader_options.sampler, config.seed);
+
+    Adam adam(model->parameters(), AdamOptions{config.lr});
+    int64_t step = 0;
+    double best_val = std::numeric_limits<double>::infinity();
+    double last_val = best_val;
+    if (!state_info.is_null()) {
+        adam.load_state(optimizer_state, state_info.at("adam"));
+        step = state_info.at("step");
+        best_val = state_info.value("best_val_cd", best_val);
+        last_val = state_info.value("last_val_cd", last_val);
+        loader.seek(state_info.at("loader_position"));
+    }
+    nlohmann::json extra = {{"train_config", config.to_json()}, {"sampler", config.sampler}};
+
+    auto save_state = [&] {
+        nlohmann::json info = {{"step", step},
+                               {"adam", adam.state_info()},
+                               {"best_val_cd", best_val},
+                               {"last_val_cd", last_val},
+                               {"loader_position", loader.position()},
+                               {"train_config", config.to_json()}};
+        save_training_state(state_file.string(), *model, adam.state(), info);
+        nlohmann::json model_extra = extra;
+        model_extra["step"] = step;
+        model_extra["val_cd"] = last_val;
+        save_checkpoint((fs::path(config.run_dir) / "model.pt").string(), *model, model_extra);
+    };
+
+    auto start = std::chrono::steady_clock::now();
+    auto elapsed = [&] {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    };
+    ProgressBar progress(config.steps, "train");
+    double loss_sum = 0;
+    int64_t loss_count = 0, first_step = step;
+    while (step < config.steps) {
+        Batch batch = loader.next();
+        adam.set_lr(learning_rate(config, step));
+        at::Tensor loss = model->loss(batch.input, batch.gt, model->parameters(), step);
+        std::vector<at::Tensor> params;
+        std::vector<std::string> names;
+        for (auto& [name, p] : model->parameters()) {
+            names.push_back(name);
+            params.push_back(p);
+        }
+        auto grads = torch::autograd::grad({loss}, params);
+        ParamMap grad_map;
+        for (size_t i = 0; i < names.size(); ++i) grad_map[names[i]] = grads[i];
+        adam.step(grad_map);
+        ++step;
+        double loss_value = loss.item<double>();
+        if (!std::isfinite(loss_value))
+            throw InternalError(fmt::format("train: loss became {} at step {}", loss_value, step));
+        loss_sum += loss_value;
+        ++loss_count;
+        progress.update(step, fmt::format("loss {:.3e} val {:.3e}", loss_value, last_val));
+        if (step % config.log_every == 0) {
+            double seconds = elapsed();
+            append_log(log_file, {{"step", step},
+                                  {"loss", loss_sum / loss_count},
+                                  {"lr", adam.lr()},
+                                  {"seconds", seconds},
+                                  {"steps_per_second", (step - first_step) / seconds}});
+            loss_sum = 0;
+            loss_count = 0;
+        }
+        bool stop = stop_after_seconds > 0 && elapsed() > stop_after_seconds;
+        if (val && (step % config.val_every == 0 || step == config.steps || stop)) {
+            last_val = validation_cd(*model, *val);
+            bool improved = last_val < best_val;
+            if (improved) {
+                best_val = last_val;
+                nlohmann::json best_extra = extra;
+                best_extra["step"] = step;
+                best_extra["val_cd"] = last_val;
+                save_checkpoint((fs::path(config.run_dir) / "best.pt").string(), *model,
+                                best_extra);
+            }
+            append_log(log_file, {{"step", step}, {"val_cd", last_val}, {"best", improved},
+                                  {"input_cd", val->input_cd}, {"seconds", elapsed()}});
+            spdlog::info("train: step {} val CD {:.4e} (best {:.4e}, input {:.4e})", step,
+                         last_val, best_val, val->input_cd);
+        }
+        if (step % config.checkpoint_every == 0 || step == config.steps || stop) save_state();
+        if (stop) {
+            spdlog::info("train: time limit reached at step {}; continue with --resume", step);
+            break;
+        }
+    }
+    progress.finish();
+    return {step, best_val, last_val};
+}
+
+}  // namespace pumeta

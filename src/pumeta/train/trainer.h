@@ -1,0 +1,55 @@
+// Supervised pretraining (paper Eq. 1): min_θ L(F_θ(X), Y) over training patches, resumable.
+// A run directory holds:
+//   state.ckpt   latest model + Adam moments + loader position (what --resume continues)
+//   model.pt     latest model (a plain checkpoint usable by `pumeta upsample`)
+//   best.pt      model with the lowest validation CD so far
+//   log.jsonl    one JSON object per logged step and per validation
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <string>
+
+namespace pumeta {
+
+struct TrainConfig {
+    /// Backbone config for make_backbone() (ignored on resume: the state's config is used).
+    nlohmann::json backbone;
+    /// PatchSet files written by make-dataset (train-x<r>.tensors / val-x<r>.tensors).
+    std::string train_data;
+    std::string val_data;
+    std::string run_dir;
+    int64_t batch_size = 64;
+    int64_t steps = 10000;
+    /// Adam, lr = max(lr_min, lr · lr_decay_rate^(step / lr_decay_steps)) (PU-GCN's schedule).
+    double lr = 1e-3;
+    double lr_decay_rate = 0.7;
+    int64_t lr_decay_steps = 50000;
+    double lr_min = 1e-6;
+    /// How inputs are drawn from GT patches: fps, random or nonuniform.
+    std::string sampler = "fps";
+    bool augment = true;
+    int64_t log_every = 20;
+    int64_t val_every = 500;
+    /// Validation patches (fixed: the first val_patches of a seeded draw, no augmentation).
+    int64_t val_patches = 256;
+    int64_t checkpoint_every = 500;
+    uint64_t seed = 1;
+
+    /// Fields not given keep their defaults; unknown fields are an InputError.
+    static TrainConfig from_json(const nlohmann::json& j);
+    nlohmann::json to_json() const;
+};
+
+struct TrainResult {
+    int64_t steps = 0;
+    double best_val_cd = 0;
+    double last_val_cd = 0;
+};
+
+/// Trains (or, with resume, continues the run in config.run_dir) until config.steps.
+/// Stops early, after writing a checkpoint, when `stop_after_seconds` > 0 elapses.
+TrainResult train(const TrainConfig& config, bool resume, double stop_after_seconds = 0);
+
+}  // namespace pumeta
