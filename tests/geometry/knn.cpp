@@ -223,21 +223,35 @@ TEST(KnnBruteForce, RejectsBadInput) {
                  InputError);
 }
 
-TEST(Knn, BothDispatchPathsMatchTheOracle) {
-    // Small: brute force; large: kd-tree. Either way the answer is the oracle's.
-    at::Tensor small = test::random_points(60, 23);
-    expect_matches_oracle(knn(small, small, 4), small, small, 4);
-    at::Tensor large = test::random_points(3000, 24);
-    at::Tensor queries = test::random_points(400, 25);
-    expect_matches_oracle(knn(large, queries, 4), large, queries, 4);
+TEST(Knn, MatchesTheOracleFromOnePointToMany) {
+    for (int64_t n : {1, 60, 3000}) {
+        at::Tensor points = test::random_points(n, 23);
+        at::Tensor queries = test::random_points(400, 24);
+        const int64_t k = std::min<int64_t>(n, 4);
+        expect_matches_oracle(knn(points, queries, k), points, queries, k);
+    }
+    at::Tensor small = test::random_points(60, 25);
     EXPECT_THROW(knn(small, small, 61), InputError);
     EXPECT_THROW(knn(small, small, 0), InputError);
 }
 
+TEST(Knn, BatchedOnCpuEqualsTheBruteForce) {
+    at::Tensor points =
+        at::stack({test::random_points(300, 26), shuffled_grid(7, 27).slice(0, 0, 300)});
+    at::Tensor queries =
+        at::stack({test::random_points(120, 28), shuffled_grid(5, 29).slice(0, 0, 120) + 0.5});
+    KnnResult trees = knn(points, queries, 10);
+    KnnResult brute = knn_brute_force(points, queries, 10);
+    ASSERT_EQ(trees.indices.sizes(), (at::IntArrayRef{2, 120, 10}));
+    EXPECT_TRUE(at::equal(trees.indices, brute.indices));
+    EXPECT_TRUE(at::equal(trees.sq_distances, brute.sq_distances));
+    EXPECT_THROW(knn(points, queries[0], 3), InputError);
+}
+
 TEST(Knn, WorksOnCudaWhenAvailable) {
     if (!at::hasCUDA()) GTEST_SKIP() << "no CUDA device";
-    at::Tensor points = test::random_points(3000, 26);
-    at::Tensor queries = test::random_points(500, 27);
+    at::Tensor points = test::random_points(3000, 30);
+    at::Tensor queries = test::random_points(500, 31);
     KnnResult cpu = knn_brute_force(points, queries, 8);
     KnnResult gpu = knn(points.cuda(), queries.cuda(), 8);
     EXPECT_TRUE(at::equal(cpu.indices, gpu.indices.cpu()));

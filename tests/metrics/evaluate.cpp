@@ -64,14 +64,19 @@ TEST(Evaluate, HandComputedFixtureInGroundTruthFrame) {
 TEST(Evaluate, InvariantToTranslationScaleAndPointOrder) {
     at::Tensor gt = test::random_points(600, 1) * at::tensor({1.f, 0.5f, 0.2f});
     at::Tensor pred = test::random_points(900, 2) * at::tensor({1.1f, 0.5f, 0.25f});
-    MetricReport report = evaluate(pred, gt);
+    // Triangles over consecutive GT points, in GT's coordinates like a real mesh.
+    TriangleMesh mesh{gt, at::arange(600, at::kLong).view({200, 3})};
+    MetricReport report = evaluate(pred, gt, &mesh);
     for (auto [scale, shift] : {std::pair{0.01f, 3.f}, std::pair{250.f, -40.f}}) {
         at::Tensor offset = at::tensor({shift, 2 * shift, -shift});
+        TriangleMesh moved_mesh{mesh.vertices * scale + offset, mesh.faces};
         SCOPED_TRACE(testing::Message() << "scale " << scale << ", shift " << shift);
         // Tolerance: float32 rounding of the moved coordinates.
-        expect_same_report(evaluate(pred * scale + offset, gt * scale + offset), report, 1e-4);
+        expect_same_report(evaluate(pred * scale + offset, gt * scale + offset, &moved_mesh),
+                           report, 1e-4);
     }
-    expect_same_report(evaluate(test::permuted(pred, 3), test::permuted(gt, 4)), report, 1e-9);
+    expect_same_report(evaluate(test::permuted(pred, 3), test::permuted(gt, 4), &mesh), report,
+                       1e-9);
 }
 
 // The prediction is measured in GT's frame, never normalised on its own: a prediction twice

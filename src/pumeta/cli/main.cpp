@@ -35,6 +35,11 @@ int main(int argc, char** argv) {
     pumeta::cli::add_gen_shapes_command(app);
     pumeta::cli::add_make_dataset_command(app);
     pumeta::cli::add_train_command(app);
+    pumeta::cli::add_meta_train_command(app);
+    pumeta::cli::add_upsample_command(app);
+    std::string command_line = "pumeta";
+    for (int i = 1; i < argc; ++i) command_line += std::string(" ") + argv[i];
+    pumeta::cli::add_eval_command(app, command_line);
 
     try {
         app.parse(argc, argv);

@@ -1,6 +1,7 @@
 #include "pumeta/core/blas_check.h"
 
 #include <ATen/ATen.h>
+#include <ATen/Parallel.h>
 #include <spdlog/spdlog.h>
 
 #include <chrono>
@@ -8,6 +9,10 @@
 namespace pumeta {
 
 double measure_gemm_gflops(int n) {
+    // One thread: reference BLAS is single-threaded anyway, and a multi-threaded OpenMP GEMM
+    // on a loaded machine can stall far below its real speed (a false alarm).
+    int threads = at::get_num_threads();
+    at::set_num_threads(1);
     at::NoGradGuard no_grad;
     at::Tensor a = at::rand({n, n});
     at::Tensor b = at::rand({n, n});
@@ -20,6 +25,7 @@ double measure_gemm_gflops(int n) {
             std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         best = std::min(best, seconds);
     }
+    at::set_num_threads(threads);
     return 2.0 * n * n * n / best / 1e9;
 }
 

@@ -1,6 +1,7 @@
 #include "pumeta/data/dataset.h"
 
 #include <ATen/ATen.h>
+#include <ATen/Parallel.h>
 #include <spdlog/spdlog.h>
 
 #include <atomic>
@@ -85,9 +86,9 @@ std::string case_name(const std::string& id) {
 
 std::string noise_tag(double value) { return fmt::format("{:g}", value); }
 
-/// The mesh's faces that have positive area, and its vertices mapped to the unit sphere
-/// (area-weighted surface centroid -> 0, farthest used vertex -> radius 1).
-TriangleMesh normalize_mesh(TriangleMesh mesh, const std::string& what) {
+}  // namespace
+
+TriangleMesh normalize_to_unit_sphere(TriangleMesh mesh, const std::string& what) {
     at::Tensor v = mesh.vertices.to(at::kDouble);
     at::Tensor a = v.index_select(0, mesh.faces.select(1, 0));
     at::Tensor b = v.index_select(0, mesh.faces.select(1, 1));
@@ -99,11 +100,13 @@ TriangleMesh normalize_mesh(TriangleMesh mesh, const std::string& what) {
     area = area.index({keep});
     at::Tensor centroids = ((a + b + c) / 3.0).index({keep});
     at::Tensor center = (centroids * area.unsqueeze(1)).sum(0) / area.sum();
-    at::Tensor used = at::unique_dim(mesh.faces.flatten(), 0);
+    at::Tensor used = std::get<0>(at::_unique(mesh.faces.flatten()));
     double radius = (v.index_select(0, used) - center).norm(2, 1).max().item<double>();
     mesh.vertices = ((v - center) / radius).to(at::kFloat);
     return mesh;
 }
+
+namespace {
 
 TriangleMesh load_item_mesh(const Item& item, const std::string& raw_dir) {
     if (item.model.source == "generator") return generate_shape(item.generator_seed);
@@ -233,7 +236,7 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
                 }
                 return;
             }
-            TriangleMesh mesh = normalize_mesh(load_item_mesh(item, config.raw_dir), id);
+            TriangleMesh mesh = normalize_to_unit_sphere(load_item_mesh(item, config.raw_dir), id);
             if (item.split == "train" || item.split == "val") {
                 for (int64_t r : config.ratios) {
                     std::string tag = id + "/train/" + std::to_string(r);

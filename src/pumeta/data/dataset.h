@@ -20,6 +20,8 @@
 #include <string>
 #include <vector>
 
+#include "pumeta/geometry/point_cloud.h"
+
 namespace pumeta {
 
 struct DatasetConfig {
@@ -49,6 +51,11 @@ struct DatasetConfig {
     static DatasetConfig from_json(const nlohmann::json& j);
     nlohmann::json to_json() const;
 };
+
+/// The mesh without its zero-area faces, moved and scaled so that its area-weighted surface
+/// centroid is at 0 and its farthest used vertex at radius 1. InputError (naming `what`) when
+/// no face has positive area.
+TriangleMesh normalize_to_unit_sphere(TriangleMesh mesh, const std::string& what);
 
 /// Builds the whole dataset into out_dir (created; existing files are overwritten).
 /// Returns the manifest (also written to out_dir/manifest.json). Logs progress.

@@ -26,18 +26,19 @@ struct Format {
     Reader read;
     Writer write;  // nullptr for read-only formats
     bool holds_faces;
+    bool is_text;  // entirely text, so a UTF-16 byte order mark cannot be binary data
 };
 
 // The one place that knows which formats exist.
 const std::vector<Format>& format_table() {
     static const std::vector<Format> table = {
-        {"ply", {"ply"}, io::read_ply, io::write_ply, true},
-        {"xyz", {"xyz", "txt", "pts"}, io::read_xyz, io::write_xyz, false},
-        {"off", {"off"}, io::read_off, io::write_off, true},
-        {"obj", {"obj"}, io::read_obj, io::write_obj, true},
-        {"stl", {"stl"}, io::read_stl, nullptr, true},
-        {"pcd", {"pcd"}, io::read_pcd, io::write_pcd, false},
-        {"las", {"las"}, io::read_las, nullptr, false},
+        {"ply", {"ply"}, io::read_ply, io::write_ply, true, false},
+        {"xyz", {"xyz", "txt", "pts"}, io::read_xyz, io::write_xyz, false, true},
+        {"off", {"off"}, io::read_off, io::write_off, true, true},
+        {"obj", {"obj"}, io::read_obj, io::write_obj, true, true},
+        {"stl", {"stl"}, io::read_stl, nullptr, true, false},
+        {"pcd", {"pcd"}, io::read_pcd, io::write_pcd, false, false},
+        {"las", {"las"}, io::read_las, nullptr, false, false},
     };
     return table;
 }
@@ -109,6 +110,10 @@ void handle_non_finite(Geometry& geometry, const std::string& path, bool drop) {
 Geometry read_checked(const std::string& path, const ReadOptions& options, bool keep_faces) {
     const Format& format = resolve_format(path, options.format);
     const std::string data = io::read_whole_file(path);
+    const bool utf16_bom = data.size() >= 2 && ((data[0] == '\xFE' && data[1] == '\xFF') ||
+                                                (data[0] == '\xFF' && data[1] == '\xFE'));
+    if (utf16_bom && format.is_text)
+        throw_input_error(path, "UTF-16 text is not supported; save the file as UTF-8 or ASCII");
     Geometry geometry = format.read(path, data);
     if (!keep_faces || (geometry.faces.defined() && geometry.faces.size(0) == 0))
         geometry.faces = at::Tensor();
@@ -130,8 +135,7 @@ at::Tensor cpu_contiguous(const at::Tensor& tensor) {
     return tensor.defined() ? tensor.to(at::kCPU).contiguous() : tensor;
 }
 
-void write_checked(const std::string& path, const Geometry& geometry,
-                   const WriteOptions& options) {
+void write_checked(const std::string& path, const Geometry& geometry, const WriteOptions& options) {
     const Format& format = resolve_format(path, options.format);
     if (!format.write)
         throw_input_error(path, "cannot write {} files; writable formats: {}", format.name,
@@ -143,13 +147,14 @@ void write_checked(const std::string& path, const Geometry& geometry,
     if (cloud.has_colors()) check_attribute(cloud.colors, n, at::kByte, "colors", path);
     if (geometry.faces.defined()) {
         if (!format.holds_faces)
-            throw_input_error(path, "{} files cannot hold faces; write the mesh as .ply, .off or .obj",
+            throw_input_error(path,
+                              "{} files cannot hold faces; write the mesh as .ply, .off or .obj",
                               format.name);
         check_faces(geometry.faces, n, path);
     }
-    const Geometry prepared{{cpu_contiguous(cloud.points), cpu_contiguous(cloud.normals),
-                             cpu_contiguous(cloud.colors)},
-                            cpu_contiguous(geometry.faces)};
+    const Geometry prepared{
+        {cpu_contiguous(cloud.points), cpu_contiguous(cloud.normals), cpu_contiguous(cloud.colors)},
+        cpu_contiguous(geometry.faces)};
     io::write_atomically(path, format.write(prepared, options.binary));
 }
 
@@ -177,7 +182,7 @@ void write_point_cloud(const std::string& path, const PointCloud& cloud,
 
 void write_mesh(const std::string& path, const TriangleMesh& mesh, const WriteOptions& options) {
     if (!mesh.faces.defined()) throw_input_error(path, "the mesh has no faces tensor");
-    write_checked(path, Geometry{{mesh.vertices}, mesh.faces}, options);
+    write_checked(path, Geometry{{mesh.vertices, at::Tensor(), at::Tensor()}, mesh.faces}, options);
 }
 
 void write_geometry(const std::string& path, const Geometry& geometry,

@@ -1,5 +1,6 @@
-// k-nearest-neighbour search: a kd-tree (nanoflann) for large CPU clouds and a brute-force
-// cdist + topk path for small clouds, batches and GPU tensors.
+// k-nearest-neighbour search: a kd-tree (nanoflann) for CPU tensors and a brute-force
+// distance + topk path for GPU tensors. Both break ties by index and compute the same float32
+// distances, so they return bit-identical results.
 #pragma once
 
 #include <ATen/core/Tensor.h>
@@ -38,12 +39,14 @@ class KdTree {
     std::unique_ptr<Impl> impl_;
 };
 
-/// k nearest points of `points` [N,3] for each of `queries` [Q,3]; picks the kd-tree or brute
-/// force by size and device. InputError when k > N.
+/// k nearest points of `points` for each query: points float32 [N,3] and queries [Q,3], or
+/// batches [B,N,3] and [B,Q,3] (indices then count within each element). CPU tensors use
+/// kd-trees (one per batch element, elements in parallel), others the brute force.
+/// InputError when k is not in [1, N].
 KnnResult knn(const at::Tensor& points, const at::Tensor& queries, int64_t k);
 
-/// Brute force on any device: points [N,3] or [B,N,3], queries [Q,3] or [B,Q,3].
-/// Memory O(Q·N) per batch element; processes queries in chunks to bound it.
+/// Brute force on any device, same shapes as knn(). Processes queries in blocks to bound the
+/// O(Q·N) distance matrix; no gradient flows into the result.
 KnnResult knn_brute_force(const at::Tensor& points, const at::Tensor& queries, int64_t k);
 
 }  // namespace pumeta

@@ -11,12 +11,14 @@
 
 namespace pumeta {
 
-/// Farthest point sampling. points: float32 [N,3]; returns int64 [m] indices, the first
-/// being `start` (the point itself, not a random choice, so results are reproducible).
-/// InputError when m > N.
+/// Farthest point sampling. points: float32 [N,3]; returns int64 [m] indices (on the points'
+/// device; computed on the CPU), the first being `start` (the point itself, not a random choice,
+/// so results are reproducible). Ties go to the smaller index; once only duplicates of chosen
+/// points remain, indices may repeat. InputError when m > N.
 at::Tensor farthest_point_sampling(const at::Tensor& points, int64_t m, int64_t start = 0);
 
-/// Batched FPS on any device: points [B,N,3] -> int64 [B,m], starting at index 0 of each.
+/// Batched FPS on any device with tensor ops: points float32/float64 [B,N,3] -> int64 [B,m],
+/// starting at index 0 of each; same answer as farthest_point_sampling() per element.
 at::Tensor farthest_point_sampling_batched(const at::Tensor& points, int64_t m);
 
 /// m distinct indices drawn uniformly from [0, n) (sorted ascending). InputError when m > n.
@@ -39,7 +41,11 @@ struct PoissonDiskOptions {
     int64_t init_factor = 5;
 };
 
-/// n blue-noise points on the surface with face normals.
+/// n blue-noise points on the surface with face normals: the candidates
+/// sample_uniform(mesh, init_factor * n, seed), thinned by repeatedly eliminating the one with
+/// the largest weight sum(1 - d / 2 r_max)^8 over neighbours closer than 2 r_max, where
+/// r_max = 2 sqrt(area / n / (2 sqrt 3)) (ties: larger index first). The survivors keep the
+/// candidates' order. O(M log M) time and O(M) memory for M candidates.
 PointCloud sample_poisson_disk(const TriangleMesh& mesh, int64_t n, uint64_t seed,
                                const PoissonDiskOptions& options = {});
 

@@ -7,10 +7,12 @@
 namespace pumeta {
 
 std::vector<double> nearest_sq_distances(const at::Tensor& from, const at::Tensor& to) {
+    // .to() returns its input unchanged when it already has the dtype and device.
+    at::Tensor nearest = KdTree(to.to(at::kCPU, at::kFloat))
+                             .query(from.to(at::kCPU, at::kFloat).contiguous(), 1)
+                             .indices.contiguous();
     at::Tensor queries = from.to(at::kCPU, at::kDouble).contiguous();
     at::Tensor points = to.to(at::kCPU, at::kDouble).contiguous();
-    at::Tensor nearest = KdTree(points.to(at::kFloat)).query(queries.to(at::kFloat), 1).indices;
-    nearest = nearest.contiguous();
 
     const int64_t count = queries.size(0);
     const double* q = queries.data_ptr<double>();

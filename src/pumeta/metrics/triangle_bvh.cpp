@@ -1,3 +1,5 @@
+// The triangle BVH (median splits, ordered closest-point traversal) and the exact
+// point-triangle distance it evaluates at its leaves.
 #include "pumeta/metrics/triangle_bvh.h"
 
 #include <ATen/ATen.h>
@@ -82,7 +84,7 @@ double ericson_sq_distance(const double p[3], const double a[3], const double b[
 /// squared are treated as their three edges. Their height is then below this fraction of
 /// the longest edge, which bounds the error of doing so; above it, rounding in Ericson's
 /// region tests misplaces region borders by about the same amount.
-constexpr double kDegenerateRatio = 0;
+constexpr double kDegenerateRatio = 1e-8;
 
 double point_triangle_sq_distance(const double p[3], const double a[3], const double b[3],
                                   const double c[3]) {
@@ -203,17 +205,18 @@ TriangleBvh::Impl::Impl(std::vector<std::array<Vec3, 3>> input) {
 double TriangleBvh::Impl::sq_distance(const double p[3]) const {
     double best = std::numeric_limits<double>::infinity();
     // Depth-first, nearer child first, each entry carrying its box distance so that a node
-    // is skipped once a closer triangle has been found after it was pushed.
+    // is skipped once a closer triangle has been found after it was pushed. The stack holds
+    // at most one pending sibling per level plus one: median splits keep the depth below
+    // 64 for any int64 triangle count, so a fixed array suffices.
     struct Entry {
         int64_t node;
         double box_sq_distance;
     };
-    std::vector<Entry> stack;
-    stack.reserve(64);
-    stack.push_back({0, nodes[0].box.sq_distance(p)});
-    while (!stack.empty()) {
-        Entry entry = stack.back();
-        stack.pop_back();
+    std::array<Entry, 65> stack;
+    int size = 0;
+    stack[size++] = {0, nodes[0].box.sq_distance(p)};
+    while (size > 0) {
+        Entry entry = stack[--size];
         if (entry.box_sq_distance >= best) continue;
         const Node& node = nodes[entry.node];
         if (node.count > 0) {
@@ -231,8 +234,8 @@ double TriangleBvh::Impl::sq_distance(const double p[3]) const {
             std::swap(near, far);
             std::swap(near_sq, far_sq);
         }
-        if (far_sq < best) stack.push_back({far, far_sq});
-        if (near_sq < best) stack.push_back({near, near_sq});
+        if (far_sq < best) stack[size++] = {far, far_sq};
+        if (near_sq < best) stack[size++] = {near, near_sq};
     }
     return best;
 }

@@ -22,7 +22,7 @@ void nearest_cpu(const at::Tensor& queries, const at::Tensor& points_soa, at::Te
     const scalar_t* p = points_soa.data_ptr<scalar_t>();
     int64_t* result = out.data_ptr<int64_t>();
     at::parallel_for(0, queries.size(0) * num_queries, 64, [&](int64_t begin, int64_t end) {
-        std::vector<scalar_t> distances(size_t(num_points));
+        std::vector<scalar_t> distances(static_cast<size_t>(num_points));
         for (int64_t row = begin; row < end; ++row) {
             const scalar_t* px = p + (row / num_queries) * 3 * num_points;
             const scalar_t* py = px + num_points;

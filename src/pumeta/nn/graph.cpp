@@ -42,7 +42,7 @@ void argmax_neighbors_cpu(const at::Tensor& x, const at::Tensor& idx, at::Tensor
     const int64_t* is = idx.data_ptr<int64_t>();
     int64_t* out = sel.data_ptr<int64_t>();
     at::parallel_for(0, x.size(0) * num_points, 16, [&](int64_t begin, int64_t end) {
-        std::vector<scalar_t> best(size_t(channels));
+        std::vector<scalar_t> best(static_cast<size_t>(channels));
         for (int64_t row = begin; row < end; ++row) {
             const int64_t batch_base = (row / num_points) * num_points;
             const int64_t* neighbors = is + row * k;

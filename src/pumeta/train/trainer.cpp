@@ -2,7 +2,6 @@
 
 #include <ATen/ATen.h>
 #include <spdlog/spdlog.h>
-#include <torch/csrc/autograd/autograd.h>
 
 #include <chrono>
 #include <cmath>
@@ -18,7 +17,7 @@
 #include "pumeta/models/backbone.h"
 #include "pumeta/models/checkpoint.h"
 #include "pumeta/nn/adam.h"
-#include "pumeta/nn/chamfer_loss.h"
+#include "pumeta/nn/gradients.h"
 #include "pumeta/train/training_state.h"
 #include "pumeta/train/validation.h"
 
@@ -159,16 +158,7 @@ TrainResult train(const TrainConfig& config, bool resume, double stop_after_seco
         Batch batch = loader.next();
         adam.set_lr(learning_rate(config, step));
         at::Tensor loss = model->loss(batch.input, batch.gt, model->parameters(), step);
-        std::vector<at::Tensor> params;
-        std::vector<std::string> names;
-        for (auto& [name, p] : model->parameters()) {
-            names.push_back(name);
-            params.push_back(p);
-        }
-        auto grads = torch::autograd::grad({loss}, params);
-        ParamMap grad_map;
-        for (size_t i = 0; i < names.size(); ++i) grad_map[names[i]] = grads[i];
-        adam.step(grad_map);
+        adam.step(gradients(loss, model->parameters()));
         ++step;
         double loss_value = loss.item<double>();
         if (!std::isfinite(loss_value))

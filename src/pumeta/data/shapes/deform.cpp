@@ -10,8 +10,6 @@ namespace {
 
 double& coordinate(Vec3& v, int axis) { return axis == 0 ? v.x : axis == 1 ? v.y : v.z; }
 
-double coordinate(const Vec3& v, int axis) { return axis == 0 ? v.x : axis == 1 ? v.y : v.z; }
-
 }  // namespace
 
 Deformation random_deformation(Rng& rng, const Mesh& mesh) {
@@ -23,9 +21,9 @@ Deformation random_deformation(Rng& rng, const Mesh& mesh) {
         auto [lo, hi] = bounding_box(mesh);
         Vec3 half = (hi - lo) * 0.5;
         double length = coordinate(half, d.axis);
-        double reach = std::hypot(coordinate(half, (d.axis + 1) % 3),
-                                  coordinate(half, (d.axis + 2) % 3)) *
-                       (1 + std::abs(d.taper));
+        double reach =
+            std::hypot(coordinate(half, (d.axis + 1) % 3), coordinate(half, (d.axis + 2) % 3)) *
+            (1 + std::abs(d.taper));
         // Keeps the bend's Jacobian determinant 1 - bend * x / L at least 1/2.
         double limit = std::min(0.5, 0.5 * length / reach);
         d.bend = rng.sign() * rng.uniform(0.2, 1.0) * limit;

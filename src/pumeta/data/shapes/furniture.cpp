@@ -31,8 +31,6 @@ Mesh make_leg(Rng& rng, LegStyle style, double size, double length, const Tessel
     return lathe(refine_polyline(profile, 2 * tess.edge, false), tess.around(size));
 }
 
-Mesh moved(const Mesh& part, Vec3 offset) { return transformed(part, Mat3{}, offset); }
-
 /// Rotation leaning +z towards +y by `angle` (chair and sofa backs).
 Mat3 lean_back(double angle) { return rotation({1, 0, 0}, -angle); }
 
@@ -59,8 +57,9 @@ Mesh make_table(Rng& rng, double detail) {
     Tessellation tess{detail * std::max(width, height)};
     Mesh mesh;
     if (top_shape == kRectangle) {
-        mesh.append(block({-width / 2, -depth / 2, height - thickness}, {width / 2, depth / 2, height},
-                          thickness * rng.uniform(0.0, 0.45), tess));
+        mesh.append(block({-width / 2, -depth / 2, height - thickness},
+                          {width / 2, depth / 2, height}, thickness * rng.uniform(0.0, 0.45),
+                          tess));
     } else {
         Mesh top = frustum(width / 2, width / 2, thickness, tess);
         if (top_shape == kOval) top = scaled(std::move(top), {1, depth / width, 1});
@@ -71,8 +70,9 @@ Mesh make_table(Rng& rng, double detail) {
         // Pedestal: a foot disc and a column.
         double foot_radius = std::min(width, depth) * rng.uniform(0.2, 0.35);
         double foot_height = rng.uniform(0.02, 0.05);
-        mesh.append(placed(frustum(foot_radius, foot_radius * rng.uniform(0.3, 0.9), foot_height, tess),
-                           {0, 0, foot_height / 2}));
+        mesh.append(
+            placed(frustum(foot_radius, foot_radius * rng.uniform(0.3, 0.9), foot_height, tess),
+                   {0, 0, foot_height / 2}));
         mesh.append(rod({0, 0, foot_height / 2}, {0, 0, under_top + thickness / 2},
                         rng.uniform(0.03, 0.07), tess));
         return mesh;
@@ -86,7 +86,7 @@ Mesh make_table(Rng& rng, double detail) {
     std::array<Vec2, 4> corners{{{-xi, -yi}, {xi, -yi}, {-xi, yi}, {xi, yi}}};
     double leg_length = under_top + thickness / 2;  // legs end inside the top
     Mesh leg = make_leg(rng, style, size, leg_length, tess);
-    for (Vec2 c : corners) mesh.append(moved(leg, {c.x, c.y, leg_length / 2}));
+    for (Vec2 c : corners) mesh.append(translated(leg, {c.x, c.y, leg_length / 2}));
 
     if (top_shape == kRectangle && rng.chance(0.6)) {
         // Apron boards joining the legs under the top.
@@ -127,7 +127,8 @@ Mesh make_chair(Rng& rng, double detail) {
     double mid_seat = seat_height - seat_thickness / 2;
     Mesh leg = make_leg(rng, random_leg_style(rng), size, mid_seat, tess);
     for (double sx : {-1.0, 1.0})
-        for (double sy : {-1.0, 1.0}) mesh.append(moved(leg, {sx * xi, sy * yi, mid_seat / 2}));
+        for (double sy : {-1.0, 1.0})
+            mesh.append(translated(leg, {sx * xi, sy * yi, mid_seat / 2}));
 
     // The back leans towards +y (the chair faces -y), pivoting at the seat's back edge.
     double tilt = rng.uniform(0.0, 0.25);
@@ -136,7 +137,8 @@ Mesh make_chair(Rng& rng, double detail) {
     double rise = back_height + seat_thickness / 2;  // from mid-seat to the top of the back
     if (rng.chance(0.5)) {
         double t = rng.uniform(0.015, 0.04), panel_width = width * rng.uniform(0.75, 1.0);
-        Mesh panel = rounded_box({panel_width / 2, t / 2, rise / 2}, t * rng.uniform(0.0, 0.45), tess);
+        Mesh panel =
+            rounded_box({panel_width / 2, t / 2, rise / 2}, t * rng.uniform(0.0, 0.45), tess);
         Vec3 pivot{0, depth / 2 - t / 2, mid_seat};
         mesh.append(transformed(std::move(panel), lean, pivot + up * (rise / 2)));
     } else {
@@ -156,9 +158,9 @@ Mesh make_chair(Rng& rng, double detail) {
             for (int k = 0; k < slats; ++k) {
                 double x = -xi + 2 * xi * (k + 1) / (slats + 1);
                 double half_width = std::min(0.03, xi / (slats + 1) * 0.6);
-                mesh.append(transformed(rounded_box({half_width, 0.5 * post, span / 2}, 0, tess),
-                                        lean, base + Vec3{x, 0, 0} +
-                                                  up * (seat_thickness / 2 + span / 2)));
+                mesh.append(
+                    transformed(rounded_box({half_width, 0.5 * post, span / 2}, 0, tess), lean,
+                                base + Vec3{x, 0, 0} + up * (seat_thickness / 2 + span / 2)));
             }
         } else {
             for (int k = 0; k < std::min(slats, 3); ++k) {
@@ -172,11 +174,11 @@ Mesh make_chair(Rng& rng, double detail) {
         double arm_height = rng.uniform(0.18, 0.25), arm_width = rng.uniform(0.03, 0.06);
         for (double sx : {-1.0, 1.0}) {
             Vec3 front{sx * xi, -yi, seat_height};
-            mesh.append(rod(front - Vec3{0, 0, seat_thickness / 2},
-                            front + Vec3{0, 0, arm_height}, 0.8 * size, tess));
+            mesh.append(rod(front - Vec3{0, 0, seat_thickness / 2}, front + Vec3{0, 0, arm_height},
+                            0.8 * size, tess));
             mesh.append(block({sx * xi - arm_width / 2, -yi - 0.03, seat_height + arm_height},
-                              {sx * xi + arm_width / 2, yi, seat_height + arm_height + 0.025},
-                              0.01, tess));
+                              {sx * xi + arm_width / 2, yi, seat_height + arm_height + 0.025}, 0.01,
+                              tess));
         }
     }
     if (rng.chance(0.4)) {
@@ -209,10 +211,10 @@ Mesh make_shelf(Rng& rng, double detail) {
     }
     mesh.append(block({-xi, -depth / 2, plinth}, {xi, depth / 2, plinth + t}, rounding, tess));
     if (plinth > 0)
-        mesh.append(block({-xi, -depth / 2 + 0.02, 0}, {xi, -depth / 2 + 0.02 + t, plinth}, 0,
-                          tess));
-    int compartments = std::max(1, static_cast<int>(std::lround(
-                                       (height - plinth) / rng.uniform(0.25, 0.4))));
+        mesh.append(
+            block({-xi, -depth / 2 + 0.02, 0}, {xi, -depth / 2 + 0.02 + t, plinth}, 0, tess));
+    int compartments =
+        std::max(1, static_cast<int>(std::lround((height - plinth) / rng.uniform(0.25, 0.4))));
     double setback = rng.uniform(0.0, 0.03);
     std::vector<double> levels{plinth + t};
     for (int k = 1; k < compartments; ++k) {
@@ -224,16 +226,16 @@ Mesh make_shelf(Rng& rng, double detail) {
     levels.push_back(height - t);
     if (rng.chance(0.7)) {
         double back = rng.uniform(0.004, 0.01);
-        mesh.append(block({-width / 2, depth / 2 - back, plinth}, {width / 2, depth / 2, height},
-                          0, tess));
+        mesh.append(
+            block({-width / 2, depth / 2 - back, plinth}, {width / 2, depth / 2, height}, 0, tess));
     }
     if (rng.chance(0.3)) {
         // A vertical divider in one compartment.
         int k = rng.integer(0, compartments - 1);
         double x = xi * rng.uniform(-0.5, 0.5);
         double bottom = levels[k], top = k + 1 < compartments ? levels[k + 1] - t : levels[k + 1];
-        mesh.append(block({x - t / 2, -depth / 2 + setback, bottom}, {x + t / 2, depth / 2, top},
-                          0, tess));
+        mesh.append(
+            block({x - t / 2, -depth / 2 + setback, bottom}, {x + t / 2, depth / 2, top}, 0, tess));
     }
     return mesh;
 }
@@ -257,8 +259,8 @@ Mesh make_cabinet(Rng& rng, double detail) {
         Mesh leg = make_leg(rng, random_leg_style(rng), size, foot + 0.01, tess);
         for (double sx : {-1.0, 1.0})
             for (double sy : {-1.0, 1.0})
-                mesh.append(moved(leg, {sx * (width / 2 - size - 0.02),
-                                        sy * (depth / 2 - size - 0.02), (foot + 0.01) / 2}));
+                mesh.append(translated(leg, {sx * (width / 2 - size - 0.02),
+                                             sy * (depth / 2 - size - 0.02), (foot + 0.01) / 2}));
     }
 
     // Fronts: rectangles (x0, z0, x1, z1) on the face y = -depth/2.
@@ -282,8 +284,8 @@ Mesh make_cabinet(Rng& rng, double detail) {
         case 1: {
             int rows = rng.integer(2, 5), columns = rng.integer(1, 2);
             for (int r = 0; r < rows; ++r)
-                add_row(bottom + (top - bottom) * r / rows, bottom + (top - bottom) * (r + 1) / rows,
-                        columns, true);
+                add_row(bottom + (top - bottom) * r / rows,
+                        bottom + (top - bottom) * (r + 1) / rows, columns, true);
             break;
         }
         default: {
@@ -298,8 +300,8 @@ Mesh make_cabinet(Rng& rng, double detail) {
     double knob = rng.uniform(0.01, 0.02), bar = rng.uniform(0.005, 0.009);
     for (size_t i = 0; i < fronts.size(); ++i) {
         const Front& f = fronts[i];
-        mesh.append(block({f.x0 + gap, face, f.z0 + gap}, {f.x1 - gap, -depth / 2 + 0.005, f.z1 - gap},
-                          0.003, tess));
+        mesh.append(block({f.x0 + gap, face, f.z0 + gap},
+                          {f.x1 - gap, -depth / 2 + 0.005, f.z1 - gap}, 0.003, tess));
         // Drawers are pulled in the middle, doors at the edge nearer the cabinet's centre.
         double cx = (f.x0 + f.x1) / 2, cz = (f.z0 + f.z1) / 2;
         double edge = std::min(0.06, 0.25 * (f.x1 - f.x0));
@@ -307,7 +309,7 @@ Mesh make_cabinet(Rng& rng, double detail) {
         if (knobs) {
             Vec3 centre{cx, face - 0.02, cz};
             mesh.append(rod(centre, {cx, face + 0.002, cz}, 0.4 * knob, tess));
-            mesh.append(transformed(uv_sphere(knob, tess), Mat3{}, centre));
+            mesh.append(translated(uv_sphere(knob, tess), centre));
             continue;
         }
         double length = std::min(0.2, 0.6 * (f.drawer ? f.x1 - f.x0 : f.z1 - f.z0));
@@ -315,8 +317,8 @@ Mesh make_cabinet(Rng& rng, double detail) {
         Vec3 centre{cx, face - 0.03, cz};
         mesh.append(rod(centre - along, centre + along, bar, tess));
         for (double s : {-0.8, 0.8})
-            mesh.append(rod(centre + along * s, centre + along * s + Vec3{0, 0.032, 0}, 0.8 * bar,
-                            tess));
+            mesh.append(
+                rod(centre + along * s, centre + along * s + Vec3{0, 0.032, 0}, 0.8 * bar, tess));
     }
     return mesh;
 }
@@ -331,9 +333,9 @@ Mesh make_lamp(Rng& rng, double detail) {
     double base_height = rng.uniform(0.015, 0.04) * scale;
     switch (rng.integer(0, 2)) {
         case 0:
-            mesh.append(placed(frustum(base_radius, base_radius * rng.uniform(0.6, 1.0),
-                                       base_height, tess),
-                               {0, 0, base_height / 2}));
+            mesh.append(
+                placed(frustum(base_radius, base_radius * rng.uniform(0.6, 1.0), base_height, tess),
+                       {0, 0, base_height / 2}));
             break;
         case 1: {
             // A dome: a quarter ellipse from the rim up to the axis.
@@ -341,16 +343,17 @@ Mesh make_lamp(Rng& rng, double detail) {
             int steps = std::max(4, tess.around(base_radius) / 4);
             for (int k = 0; k < steps; ++k) {
                 double angle = M_PI / 2 * k / steps;
-                profile.push_back({base_radius * std::cos(angle), 2 * base_height * std::sin(angle)});
+                profile.push_back(
+                    {base_radius * std::cos(angle), 2 * base_height * std::sin(angle)});
             }
             profile.push_back({0, 2 * base_height});
-            mesh.append(lathe(refine_polyline(profile, 2 * tess.edge, false),
-                              tess.around(base_radius)));
+            mesh.append(
+                lathe(refine_polyline(profile, 2 * tess.edge, false), tess.around(base_radius)));
             break;
         }
         default:
-            mesh.append(block({-base_radius, -base_radius, 0}, {base_radius, base_radius, base_height},
-                              0.3 * base_height, tess));
+            mesh.append(block({-base_radius, -base_radius, 0},
+                              {base_radius, base_radius, base_height}, 0.3 * base_height, tess));
     }
     double pole = rng.uniform(0.006, 0.012) * scale;
     Vec3 head;
@@ -364,7 +367,7 @@ Mesh make_lamp(Rng& rng, double detail) {
         double angle = rng.uniform(0.3, 1.2), arm = height * rng.uniform(0.3, 0.45);
         head = joint + Vec3{std::sin(angle) * arm, 0, std::cos(angle) * arm};
         mesh.append(rod(joint, head, pole, tess));
-        for (Vec3 p : {joint, head}) mesh.append(transformed(uv_sphere(2 * pole, tess), Mat3{}, p));
+        for (Vec3 p : {joint, head}) mesh.append(translated(uv_sphere(2 * pole, tess), p));
         double tilt = rng.uniform(0.3, 1.2);
         shade_axis = {std::sin(tilt), 0, std::cos(tilt)};
     }
@@ -379,7 +382,9 @@ Mesh make_lamp(Rng& rng, double detail) {
     switch (rng.integer(0, 3)) {
         case 0: {
             double h = shade_height / 2;
-            shade = lathe_loop({{bottom_radius - wall, -h}, {bottom_radius, -h}, {top_radius, h},
+            shade = lathe_loop({{bottom_radius - wall, -h},
+                                {bottom_radius, -h},
+                                {top_radius, h},
                                 {top_radius - wall, h}},
                                tess.around(bottom_radius));
             break;
@@ -400,7 +405,8 @@ Mesh make_lamp(Rng& rng, double detail) {
             std::vector<Vec2> loop;
             for (int k = 0; k <= steps; ++k) {
                 double a = top_angle * k / steps;
-                loop.push_back({bottom_radius * std::cos(a), shade_height * std::sin(a) - shade_height / 2});
+                loop.push_back(
+                    {bottom_radius * std::cos(a), shade_height * std::sin(a) - shade_height / 2});
             }
             for (int k = steps; k >= 0; --k) {
                 double a = top_angle * k / steps;
@@ -411,8 +417,7 @@ Mesh make_lamp(Rng& rng, double detail) {
         }
     }
     mesh.append(placed(std::move(shade), centre, shade_axis));
-    if (open && rng.chance(0.5))
-        mesh.append(transformed(uv_sphere(0.5 * top_radius, tess), Mat3{}, centre));
+    if (open && rng.chance(0.5)) mesh.append(translated(uv_sphere(0.5 * top_radius, tess), centre));
     return mesh;
 }
 
@@ -449,7 +454,8 @@ Mesh make_sofa(Rng& rng, double detail) {
         double rise = 0.9 * (back_height - seat_height);
         Mesh pillow = rounded_box({(x1 - x0) / 2, back_cushion / 2, rise / 2},
                                   std::min(1.5 * soft, 0.45 * back_cushion), tess);
-        Vec3 pivot{(x0 + x1) / 2, depth / 2 - back_thickness - back_cushion / 2 + 0.02, seat_height};
+        Vec3 pivot{(x0 + x1) / 2, depth / 2 - back_thickness - back_cushion / 2 + 0.02,
+                   seat_height};
         mesh.append(transformed(std::move(pillow), lean, pivot + lean * Vec3{0, 0, rise / 2}));
     }
     double foot_radius = rng.uniform(0.02, 0.04);
@@ -458,7 +464,7 @@ Mesh make_sofa(Rng& rng, double detail) {
     for (int c = 0; c < columns; ++c)
         for (double sy : {-1.0, 1.0}) {
             double x = -(width / 2 - 0.06) + (width - 0.12) * c / (columns - 1);
-            mesh.append(moved(leg, {x, sy * (depth / 2 - 0.06), (feet + 0.01) / 2}));
+            mesh.append(translated(leg, {x, sy * (depth / 2 - 0.06), (feet + 0.01) / 2}));
         }
     return mesh;
 }

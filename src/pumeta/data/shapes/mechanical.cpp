@@ -9,8 +9,6 @@ namespace pumeta::shapes {
 
 namespace {
 
-Mesh moved(const Mesh& part, Vec3 offset) { return transformed(part, Mat3{}, offset); }
-
 Mesh hex_prism(double radius, double height, const Tessellation& tess) {
     return extrude(regular_polygon(6, radius), height, tess);
 }
@@ -18,17 +16,19 @@ Mesh hex_prism(double radius, double height, const Tessellation& tess) {
 /// A bolt head standing on a surface: a hex prism or a round cap, axis along +z, its base at
 /// z = 0 (sunk slightly so that it meets the surface).
 Mesh bolt_head(bool hex, double radius, double height, const Tessellation& tess) {
-    Mesh head = hex ? hex_prism(radius, height, tess) : frustum(radius, 0.85 * radius, height, tess);
-    return moved(head, {0, 0, height / 2 - 0.05 * height});
+    Mesh head =
+        hex ? hex_prism(radius, height, tess) : frustum(radius, 0.85 * radius, height, tess);
+    return translated(head, {0, 0, height / 2 - 0.05 * height});
 }
 
-/// The points of an inner corner's fillet: an arc of `radius` about `centre` from angle `from`
-/// to angle `to`, without its end points' neighbours.
+/// Appends the `steps` + 1 points of an arc of `radius` about `centre` from angle `from` to
+/// angle `to` (an inner corner's fillet).
 void add_arc(std::vector<Vec2>& polygon, Vec2 centre, double radius, double from, double to,
              int steps) {
     for (int k = 0; k <= steps; ++k) {
         double angle = from + (to - from) * k / steps;
-        polygon.push_back({centre.x + radius * std::cos(angle), centre.y + radius * std::sin(angle)});
+        polygon.push_back(
+            {centre.x + radius * std::cos(angle), centre.y + radius * std::sin(angle)});
     }
 }
 
@@ -45,7 +45,8 @@ Mesh make_gear(Rng& rng, double detail) {
     Mesh mesh;
     auto add_gear = [&](int n, double r_root, double r_tip, double t, double z) {
         std::vector<Vec2> outline = gear_outline(n, r_root, r_tip);
-        mesh.append(moved(extrude_ring(outline, circle_at_angles(outline, bore), t, tess), {0, 0, z}));
+        mesh.append(
+            translated(extrude_ring(outline, circle_at_angles(outline, bore), t, tess), {0, 0, z}));
     };
     add_gear(teeth, root, tip, thickness, 0);
     double top = thickness / 2;
@@ -62,7 +63,8 @@ Mesh make_gear(Rng& rng, double detail) {
     if (rng.chance(0.7)) {
         double hub = std::min(bore * rng.uniform(1.6, 2.4), 0.8 * root);
         double hub_height = thickness * rng.uniform(1.4, 2.5);
-        mesh.append(moved(tube(bore, hub, hub_height, tess), {0, 0, -thickness / 2 + 0.3 * thickness}));
+        mesh.append(translated(tube(bore, hub, hub_height, tess),
+                               {0, 0, -thickness / 2 + 0.3 * thickness}));
         extent = std::max(extent, hub_height);
     }
     if (rng.chance(0.5)) {
@@ -79,8 +81,8 @@ Mesh make_flange(Rng& rng, double detail) {
     Tessellation tess{detail * 2 * outer};
     int bolts = outer > 0.65 ? 2 * rng.integer(3, 6) : 2 * rng.integer(2, 4);
     double bolt_circle = (neck + outer) / 2;
-    double head = std::min(0.4 * M_PI * bolt_circle / bolts, 0.35 * (outer - neck)) *
-                  rng.uniform(0.8, 1.0);
+    double head =
+        std::min(0.4 * M_PI * bolt_circle / bolts, 0.35 * (outer - neck)) * rng.uniform(0.8, 1.0);
     double raised = rng.chance(0.4) ? t * rng.uniform(0.1, 0.3) : 0;
     double chamfer = rng.chance(0.5) ? t * rng.uniform(0.1, 0.3) : 0;
 
@@ -93,8 +95,9 @@ Mesh make_flange(Rng& rng, double detail) {
         loop.push_back({face, 0});
     }
     if (chamfer > 0) {
-        loop.insert(loop.end(), {{outer - chamfer, 0}, {outer, chamfer}, {outer, t - chamfer},
-                                 {outer - chamfer, t}});
+        loop.insert(
+            loop.end(),
+            {{outer - chamfer, 0}, {outer, chamfer}, {outer, t - chamfer}, {outer - chamfer, t}});
     } else {
         loop.insert(loop.end(), {{outer, 0}, {outer, t}});
     }
@@ -104,17 +107,18 @@ Mesh make_flange(Rng& rng, double detail) {
     bool hex = rng.chance(0.7);
     double head_height = head * rng.uniform(0.5, 0.8), nut_height = head_height;
     double shank = 0.55 * head;
-    Mesh top_head = moved(bolt_head(hex, head, head_height, tess), {0, 0, t});
-    Mesh nut = moved(hex_prism(head, nut_height, tess), {0, 0, -nut_height / 2 + 0.05 * nut_height});
-    Mesh bolt = frustum(shank, shank, t + 2 * nut_height + 0.5 * shank, tess);
-    bolt = moved(bolt, {0, 0, t / 2 - nut_height / 2 - 0.25 * shank + 0.5 * nut_height});
+    Mesh top_head = translated(bolt_head(hex, head, head_height, tess), {0, 0, t});
+    Mesh nut =
+        translated(hex_prism(head, nut_height, tess), {0, 0, -nut_height / 2 + 0.05 * nut_height});
+    // The shank runs from just below the nut into the head.
+    Mesh bolt = rod({0, 0, -nut_height - 0.5 * shank}, {0, 0, t + 0.5 * head_height}, shank, tess);
     for (int k = 0; k < bolts; ++k) {
         double angle = 2 * M_PI * (k + 0.5) / bolts;
         Vec3 at{bolt_circle * std::cos(angle), bolt_circle * std::sin(angle), 0};
         Mat3 turn = rotation({0, 0, 1}, angle);
         mesh.append(transformed(top_head, turn, at));
         mesh.append(transformed(nut, turn, at));
-        mesh.append(moved(bolt, at));
+        mesh.append(translated(bolt, at));
     }
     return mesh;
 }
@@ -161,13 +165,14 @@ Mesh make_bracket(Rng& rng, double detail) {
         }
     }
     bool hex = rng.chance(0.5);
-    double head = std::min(0.15 * width, 0.25 * (a - th - fillet)) * rng.uniform(0.6, 1.0);
+    double head = std::min({0.15 * width, 0.25 * (a - th - fillet), 0.25 * (b - th - fillet)}) *
+                  rng.uniform(0.6, 1.0);
     Mesh bolt = bolt_head(hex, head, 0.6 * head, tess);
     int rows = width > 0.6 ? 2 : 1;
     for (int k = 0; k < rows; ++k) {
         double y = rows == 1 ? 0 : (k == 0 ? -0.25 : 0.25) * width;
         double x = channel ? a / 2 : th + fillet + (a - th - fillet) * 0.6;
-        mesh.append(moved(bolt, {x, y, th}));
+        mesh.append(translated(bolt, {x, y, th}));
         if (!channel) {
             double z = th + fillet + (b - th - fillet) * 0.6;
             mesh.append(transformed(bolt, rotation_from_z({1, 0, 0}), {th, y, z}));
@@ -187,15 +192,15 @@ Mesh make_shaft(Rng& rng, double detail) {
     bounds.push_back(length / 2);
 
     double c0 = std::min(0.3 * radii.front(), 0.02), c1 = std::min(0.3 * radii.back(), 0.02);
-    std::vector<Vec2> profile{{0, -length / 2}, {radii.front() - c0, -length / 2},
-                              {radii.front(), -length / 2 + c0}};
+    std::vector<Vec2> profile{
+        {0, -length / 2}, {radii.front() - c0, -length / 2}, {radii.front(), -length / 2 + c0}};
     for (int k = 0; k + 1 < steps; ++k) {
         profile.push_back({radii[k], bounds[k + 1]});
         profile.push_back({radii[k + 1], bounds[k + 1]});
     }
-    profile.insert(profile.end(), {{radii.back(), length / 2 - c1},
-                                   {radii.back() - c1, length / 2},
-                                   {0, length / 2}});
+    profile.insert(
+        profile.end(),
+        {{radii.back(), length / 2 - c1}, {radii.back() - c1, length / 2}, {0, length / 2}});
     double widest = *std::max_element(radii.begin(), radii.end());
     Mesh mesh = lathe(refine_polyline(profile, 2 * tess.edge, false), tess.around(widest));
 
@@ -208,15 +213,15 @@ Mesh make_shaft(Rng& rng, double detail) {
         double outer = radii[k] * rng.uniform(1.4, 2.0);
         // The collar's bore is smaller than the shaft so that the two overlap rather than
         // share a surface.
-        mesh.append(moved(tube(0.9 * radii[k], outer, w, tess), {0, 0, z}));
+        mesh.append(translated(tube(0.9 * radii[k], outer, w, tess), {0, 0, z}));
         mesh.append(rod({outer - 0.01, 0, z}, {outer + 0.25 * w, 0, z}, 0.2 * w, tess));
     }
     if (rng.chance(0.5)) {
         int k = static_cast<int>(std::max_element(radii.begin(), radii.end()) - radii.begin());
         double r = radii[k], span = bounds[k + 1] - bounds[k];
         double mid = (bounds[k] + bounds[k + 1]) / 2;
-        mesh.append(block({0.75 * r, -0.25 * r, mid - span / 4}, {1.2 * r, 0.25 * r, mid + span / 4},
-                          0.05 * r, tess));
+        mesh.append(block({0.75 * r, -0.25 * r, mid - span / 4},
+                          {1.2 * r, 0.25 * r, mid + span / 4}, 0.05 * r, tess));
     }
     return mesh;
 }
@@ -241,8 +246,11 @@ Mesh make_pulley(Rng& rng, double detail) {
                                  {outer, z1}});
     }
     if (grooves == 0) loop.push_back({outer, width / 2});
-    loop.insert(loop.end(), {{rim, width / 2}, {rim, web / 2}, {hub, web / 2},
-                             {hub, hub_width / 2}, {bore, hub_width / 2}});
+    loop.insert(loop.end(), {{rim, width / 2},
+                             {rim, web / 2},
+                             {hub, web / 2},
+                             {hub, hub_width / 2},
+                             {bore, hub_width / 2}});
     Mesh mesh = lathe_loop(refine_polyline(loop, 2 * tess.edge, true), tess.around(outer));
     if (rng.chance(0.4)) {
         double length = hub_width * rng.uniform(1.5, 3.0);
@@ -252,9 +260,9 @@ Mesh make_pulley(Rng& rng, double detail) {
 }
 
 Mesh make_bearing_block(Rng& rng, double detail) {
-    double length = rng.uniform(0.8, 1.4), base_width = rng.uniform(0.25, 0.4);
-    double base = rng.uniform(0.05, 0.12);
     double housing = rng.uniform(0.2, 0.35), bore = housing * rng.uniform(0.45, 0.65);
+    double length = housing * rng.uniform(3.0, 4.5), base_width = rng.uniform(0.25, 0.4);
+    double base = rng.uniform(0.05, 0.12);
     double centre = base + housing * rng.uniform(0.9, 1.4);
     double housing_width = base_width * rng.uniform(0.8, 1.1);
     Tessellation tess{detail * length};
@@ -269,12 +277,12 @@ Mesh make_bearing_block(Rng& rng, double detail) {
     double head = std::min(0.3 * base_width, 0.15 * (length / 2 - pedestal)) * 0.8;
     Mesh bolt = bolt_head(rng.chance(0.7), head, 0.6 * head, tess);
     double x = (pedestal + length / 2) / 2;
-    for (double s : {-1.0, 1.0}) mesh.append(moved(bolt, {s * x, 0, base}));
+    for (double s : {-1.0, 1.0}) mesh.append(translated(bolt, {s * x, 0, base}));
     if (rng.chance(0.5)) {
         // Grease nipple on top of the housing.
         double r = 0.08 * housing;
         mesh.append(rod({0, 0, centre + 0.9 * housing}, {0, 0, centre + 1.25 * housing}, r, tess));
-        mesh.append(transformed(uv_sphere(1.4 * r, tess), Mat3{}, {0, 0, centre + 1.25 * housing}));
+        mesh.append(translated(uv_sphere(1.4 * r, tess), {0, 0, centre + 1.25 * housing}));
     }
     if (rng.chance(0.6)) {
         double half = housing_width * rng.uniform(0.8, 1.5);

@@ -2,16 +2,9 @@
 
 #include <ATen/ATen.h>
 
-namespace pumeta::shapes {
+#include "pumeta/core/error.h"
 
-Mat3 Mat3::operator*(const Mat3& other) const {
-    Mat3 product;
-    for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c)
-            product.m[3 * r + c] = m[3 * r] * other.m[c] + m[3 * r + 1] * other.m[3 + c] +
-                                   m[3 * r + 2] * other.m[6 + c];
-    return product;
-}
+namespace pumeta::shapes {
 
 Mat3 rotation(Vec3 axis, double angle) {
     // Rodrigues: R = cI + s[k]x + (1-c) k k^T.
@@ -39,7 +32,8 @@ Mat3 rotation_from_z(Vec3 direction) {
 void Mesh::append(const Mesh& other) {
     auto offset = static_cast<int64_t>(vertices.size());
     vertices.insert(vertices.end(), other.vertices.begin(), other.vertices.end());
-    for (const auto& f : other.faces) faces.push_back({f[0] + offset, f[1] + offset, f[2] + offset});
+    for (const auto& f : other.faces)
+        faces.push_back({f[0] + offset, f[1] + offset, f[2] + offset});
 }
 
 std::array<Vec3, 2> bounding_box(const Mesh& mesh) {
@@ -56,7 +50,14 @@ Mesh transformed(Mesh mesh, const Mat3& rotation, Vec3 translation) {
     return mesh;
 }
 
+Mesh translated(Mesh mesh, Vec3 offset) {
+    for (Vec3& v : mesh.vertices) v = v + offset;
+    return mesh;
+}
+
 Mesh scaled(Mesh mesh, Vec3 factors) {
+    if (!(factors.x > 0 && factors.y > 0 && factors.z > 0))
+        throw_input_error("", "scale factors must be positive (a mirror would turn faces inward)");
     for (Vec3& v : mesh.vertices) v = {v.x * factors.x, v.y * factors.y, v.z * factors.z};
     return mesh;
 }

@@ -38,7 +38,6 @@ struct Mat3 {
         return {m[0] * v.x + m[1] * v.y + m[2] * v.z, m[3] * v.x + m[4] * v.y + m[5] * v.z,
                 m[6] * v.x + m[7] * v.y + m[8] * v.z};
     }
-    Mat3 operator*(const Mat3& other) const;
 };
 
 /// Rotation by `angle` radians about the unit vector `axis` (right-handed).
@@ -72,6 +71,9 @@ std::array<Vec3, 2> bounding_box(const Mesh& mesh);
 
 /// p -> rotation * p + translation. Only rotations keep faces outward, hence no general matrix.
 Mesh transformed(Mesh mesh, const Mat3& rotation, Vec3 translation);
+
+/// p -> p + offset.
+Mesh translated(Mesh mesh, Vec3 offset);
 
 /// p -> p * factors (component-wise); factors must be positive so that faces stay outward.
 Mesh scaled(Mesh mesh, Vec3 factors);

@@ -12,7 +12,9 @@ namespace {
 
 constexpr double kPi = M_PI;
 
-double cross2(Vec2 o, Vec2 a, Vec2 b) { return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x); }
+double cross2(Vec2 o, Vec2 a, Vec2 b) {
+    return (a.x - o.x) * (b.y - o.y) - (a.y - o.y) * (b.x - o.x);
+}
 
 double signed_area(const std::vector<Vec2>& polygon) {
     double twice = 0;
@@ -74,9 +76,9 @@ Mesh revolve(const std::vector<Vec2>& profile, int segments, bool closed) {
         bool end = i == 0 || i + 1 == profile.size();
         bool on_axis = !closed && end;
         if (on_axis ? p.x != 0 : !(p.x > 0))
-            throw_input_error("", "lathe profile point {} has r = {}: {}", i, p.x,
-                              closed ? "loops need r > 0"
-                                     : "profiles run from r = 0 to r = 0 through r > 0");
+            throw_input_error(
+                "", "lathe profile point {} has r = {}: {}", i, p.x,
+                closed ? "loops need r > 0" : "profiles run from r = 0 to r = 0 through r > 0");
         ring_start.push_back(static_cast<int64_t>(mesh.vertices.size()));
         pole.push_back(on_axis);
         if (on_axis) {
@@ -105,7 +107,7 @@ std::vector<double> box_nodes(double half, double radius, const Tessellation& te
 }
 
 /// Merges vertices with bitwise equal coordinates (the shared borders of separately built
-/// grids), keeping the first occurrence's position in the order.
+/// grids); vertices keep the order of their first occurrence.
 Mesh weld_identical(const Mesh& mesh) {
     std::map<std::array<double, 3>, int64_t> index;
     std::vector<int64_t> remap(mesh.vertices.size());
@@ -136,8 +138,7 @@ int Tessellation::along(double length) const {
 Mesh rounded_box(Vec3 half_extents, double radius, const Tessellation& tess) {
     std::array<double, 3> half{half_extents.x, half_extents.y, half_extents.z};
     if (!(radius >= 0) || !(radius < *std::min_element(half.begin(), half.end())))
-        throw_input_error("", "rounded box radius {} must be in [0, smallest half extent)",
-                          radius);
+        throw_input_error("", "rounded box radius {} must be in [0, smallest half extent)", radius);
     std::array<std::vector<double>, 3> nodes;
     for (int a = 0; a < 3; ++a) nodes[a] = box_nodes(half[a], radius, tess);
 
@@ -267,8 +268,8 @@ Mesh torus(double major_radius, double minor_radius, const Tessellation& tess) {
     std::vector<Vec2> loop;
     for (int k = 0; k < minor_segments; ++k) {
         double angle = 2 * kPi * k / minor_segments;
-        loop.push_back({major_radius + minor_radius * std::cos(angle),
-                        minor_radius * std::sin(angle)});
+        loop.push_back(
+            {major_radius + minor_radius * std::cos(angle), minor_radius * std::sin(angle)});
     }
     return lathe_loop(loop, tess.around(major_radius + minor_radius));
 }
@@ -293,8 +294,8 @@ Mesh tube(double inner_radius, double outer_radius, double height, const Tessell
     if (!(inner_radius > 0 && inner_radius < outer_radius))
         throw_input_error("", "tube needs 0 < inner radius < outer radius");
     double h = height / 2;
-    std::vector<Vec2> loop{{inner_radius, -h}, {outer_radius, -h}, {outer_radius, h},
-                           {inner_radius, h}};
+    std::vector<Vec2> loop{
+        {inner_radius, -h}, {outer_radius, -h}, {outer_radius, h}, {inner_radius, h}};
     return lathe_loop(refine_polyline(loop, 2 * tess.edge, true), tess.around(outer_radius));
 }
 
@@ -386,7 +387,7 @@ Mesh extrude_ring(const std::vector<Vec2>& outer, const std::vector<Vec2>& inner
 Mesh block(Vec3 lo, Vec3 hi, double rounding, const Tessellation& tess) {
     Vec3 half = (hi - lo) * 0.5;
     double radius = std::min(rounding, 0.9 * std::min({half.x, half.y, half.z}));
-    return transformed(rounded_box(half, std::max(radius, 0.0), tess), Mat3{}, (lo + hi) * 0.5);
+    return translated(rounded_box(half, std::max(radius, 0.0), tess), (lo + hi) * 0.5);
 }
 
 Mesh rod(Vec3 from, Vec3 to, double radius, const Tessellation& tess) {
@@ -401,8 +402,10 @@ std::vector<std::array<int, 3>> ear_clip(const std::vector<Vec2>& polygon) {
     require_ccw(polygon, "ear_clip");
     double extent = 0;
     for (const Vec2& p : polygon) extent = std::max({extent, std::abs(p.x), std::abs(p.y)});
-    // Corners flatter than this are not ears: clipping them would leave slivers of zero area.
-    const double min_turn = 1e-12 * extent * extent;
+    // Corners flatter than this are not ears (clipping them would leave slivers of zero area),
+    // and vertices this close to an ear count as inside it: refined edges put vertices on
+    // diagonals, where rounding could otherwise place them just outside.
+    const double tolerance = 1e-12 * extent * extent;
 
     std::vector<int> remaining(polygon.size());
     for (size_t i = 0; i < polygon.size(); ++i) remaining[i] = static_cast<int>(i);
@@ -413,15 +416,16 @@ std::vector<std::array<int, 3>> ear_clip(const std::vector<Vec2>& polygon) {
         bool clipped = false;
         for (size_t step = 0; step < m && !clipped; ++step) {
             size_t k = (start + step) % m;
-            int prev = remaining[(k + m - 1) % m], tip = remaining[k], next = remaining[(k + 1) % m];
+            int prev = remaining[(k + m - 1) % m], tip = remaining[k],
+                next = remaining[(k + 1) % m];
             const Vec2 &a = polygon[prev], &b = polygon[tip], &c = polygon[next];
-            if (cross2(a, b, c) <= min_turn) continue;
+            if (cross2(a, b, c) <= tolerance) continue;
             bool empty = true;
             for (int q : remaining) {
                 if (q == prev || q == tip || q == next) continue;
                 const Vec2& p = polygon[q];
-                // Points on the ear's border count as inside: clipping would touch them.
-                if (cross2(a, b, p) >= 0 && cross2(b, c, p) >= 0 && cross2(c, a, p) >= 0) {
+                if (cross2(a, b, p) >= -tolerance && cross2(b, c, p) >= -tolerance &&
+                    cross2(c, a, p) >= -tolerance) {
                     empty = false;
                     break;
                 }
@@ -440,8 +444,7 @@ std::vector<std::array<int, 3>> ear_clip(const std::vector<Vec2>& polygon) {
     return triangles;
 }
 
-std::vector<Vec2> refine_polyline(const std::vector<Vec2>& points, double max_length,
-                                  bool closed) {
+std::vector<Vec2> refine_polyline(const std::vector<Vec2>& points, double max_length, bool closed) {
     std::vector<Vec2> refined;
     size_t n = points.size();
     size_t segments = closed ? n : n - 1;
@@ -470,9 +473,14 @@ std::vector<Vec2> regular_polygon(int sides, double radius, double phase) {
 
 std::vector<Vec2> gear_outline(int teeth, double root_radius, double tip_radius) {
     // Root until 1/4 of the pitch, flank, tip from 0.4 to 0.6, flank, root from 3/4.
-    static const std::array<std::pair<double, bool>, 8> kSamples{
-        {{0, false}, {0.125, false}, {0.25, false}, {0.4, true}, {0.5, true}, {0.6, true},
-         {0.75, false}, {0.875, false}}};
+    static const std::array<std::pair<double, bool>, 8> kSamples{{{0, false},
+                                                                  {0.125, false},
+                                                                  {0.25, false},
+                                                                  {0.4, true},
+                                                                  {0.5, true},
+                                                                  {0.6, true},
+                                                                  {0.75, false},
+                                                                  {0.875, false}}};
     std::vector<Vec2> outline;
     for (int k = 0; k < teeth; ++k)
         for (const auto& [fraction, tip] : kSamples) {

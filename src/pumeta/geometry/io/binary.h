@@ -8,7 +8,8 @@
 namespace pumeta::io {
 
 // The fast paths copy little-endian file data straight into tensors.
-static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "pumeta's readers assume a little-endian host");
+static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__,
+              "pumeta's readers assume a little-endian host");
 
 /// The T stored at `bytes`; `swap` reverses its bytes (big-endian data on this host).
 template <typename T>

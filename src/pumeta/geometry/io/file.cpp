@@ -30,10 +30,13 @@ std::string read_whole_file(const std::string& path) {
     if (fs::is_directory(status)) throw_input_error(path, "is a directory, not a file");
     FilePtr file(std::fopen(path.c_str(), "rb"));
     if (!file) throw_input_error(path, "cannot open: {}", std::strerror(errno));
-    // Read to the end rather than trusting the size, which pipes and /proc files lack.
+    // One read of the reported size, then on to the end: pipes and /proc files report none.
     std::string bytes;
     const uintmax_t size = fs::file_size(path, error);
-    if (!error) bytes.reserve(size);
+    if (!error && size > 0) {
+        bytes.resize(size);
+        bytes.resize(std::fread(bytes.data(), 1, size, file.get()));
+    }
     char buffer[1 << 16];
     size_t got;
     while ((got = std::fread(buffer, 1, sizeof(buffer), file.get())) > 0) bytes.append(buffer, got);

@@ -25,8 +25,8 @@ constexpr size_t kLegacyPointCount = 107;
 constexpr size_t kScale = 131;
 constexpr size_t kOffset = 155;
 constexpr size_t kPointCount14 = 247;
-constexpr size_t kMinHeaderBytes = 227;    // LAS 1.0-1.2
-constexpr size_t kHeaderBytes14 = 375;     // LAS 1.4
+constexpr size_t kMinHeaderBytes = 227;  // LAS 1.0-1.2
+constexpr size_t kHeaderBytes14 = 375;   // LAS 1.4
 
 // Smallest record of each point data format, and where its RGB sits (0: no colour).
 constexpr size_t kMinRecordBytes[11] = {20, 28, 26, 34, 57, 63, 30, 36, 38, 59, 67};
@@ -96,8 +96,8 @@ Geometry read_las(const std::string& path, std::string_view data) {
     for (int64_t i = 0; i < n; ++i) {
         const char* record = records + i * record_length;
         for (int axis = 0; axis < 3; ++axis)
-            p[3 * i + axis] = static_cast<float>(
-                load<int32_t>(record + 4 * axis) * scale[axis] + offset[axis]);
+            p[3 * i + axis] =
+                static_cast<float>(load<int32_t>(record + 4 * axis) * scale[axis] + offset[axis]);
     }
     at::Tensor colors;
     if (kColorOffset[format]) {
@@ -107,7 +107,8 @@ Geometry read_las(const std::string& path, std::string_view data) {
             for (int c = 0; c < 3; ++c)
                 rgb[3 * i + c] =
                     load<uint16_t>(records + i * record_length + kColorOffset[format] + 2 * c);
-        const bool sixteen_bit = std::any_of(rgb.begin(), rgb.end(), [](uint16_t v) { return v > 255; });
+        const bool sixteen_bit =
+            std::any_of(rgb.begin(), rgb.end(), [](uint16_t v) { return v > 255; });
         colors = at::empty({n, 3}, at::kByte);
         uint8_t* out = colors.data_ptr<uint8_t>();
         for (size_t k = 0; k < rgb.size(); ++k)

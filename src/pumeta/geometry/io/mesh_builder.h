@@ -17,15 +17,14 @@ class TriangleBuilder {
     TriangleBuilder(const std::string& path, int64_t num_vertices)
         : path_(path), num_vertices_(num_vertices) {}
 
-    void reserve(size_t triangles) { indices_.reserve(3 * triangles); }
-
     /// `where()` returns the polygon's description for error messages ("line 12 (face 3)");
     /// it is only called on failure.
     template <typename Where>
     void add_polygon(const int64_t* indices, size_t count, const Where& where) {
         if (count < 3) fail_too_few(where(), count);
         for (size_t i = 0; i < count; ++i)
-            if (indices[i] < 0 || indices[i] >= num_vertices_) fail_out_of_range(where(), indices[i]);
+            if (indices[i] < 0 || indices[i] >= num_vertices_)
+                fail_out_of_range(where(), indices[i]);
         for (size_t i = 1; i + 1 < count; ++i) {
             indices_.push_back(indices[0]);
             indices_.push_back(indices[i]);

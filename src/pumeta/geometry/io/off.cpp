@@ -34,7 +34,8 @@ Geometry read_off(const std::string& path, std::string_view data) {
     split_tokens(line, tokens);
     bool has_normals = false;
     if (!parse_keyword(tokens[0], has_normals))
-        throw_input_error(path, "line {}: expected an OFF header (OFF, COFF, NOFF, ...), found '{}'",
+        throw_input_error(path,
+                          "line {}: expected an OFF header (OFF, COFF, NOFF, ...), found '{}'",
                           lines.line_number(), printable(tokens[0]));
     if (tokens.size() > 1 && tokens[1] == "BINARY")
         throw_input_error(path, "line {}: binary OFF is not supported", lines.line_number());
@@ -49,13 +50,15 @@ Geometry read_off(const std::string& path, std::string_view data) {
     if (tokens.size() < 2 || tokens.size() > 3)
         throw_input_error(path, "line {}: expected 'vertices faces [edges]', found '{}'",
                           counts_line, printable(line));
-    const int64_t num_vertices = parse_or_throw<int64_t>(tokens[0], path, counts_line, "a vertex count");
+    const int64_t num_vertices =
+        parse_or_throw<int64_t>(tokens[0], path, counts_line, "a vertex count");
     const int64_t num_faces = parse_or_throw<int64_t>(tokens[1], path, counts_line, "a face count");
-    // Every vertex or face line takes at least two bytes: larger counts are lies, rejected
-    // before they reach the allocator.
-    const int64_t room = static_cast<int64_t>((data.size() - lines.offset()) / 2 + 1);
+    // A vertex line takes at least 5 bytes ("0 0 0") and a face line at least one, so larger
+    // counts are lies, rejected before they reach the allocator (smaller ones are reported
+    // with their line number).
+    const int64_t room = static_cast<int64_t>(data.size() - lines.offset());
     if (num_vertices < 0 || num_faces < 0 || num_vertices > room || num_faces > room ||
-        num_vertices + num_faces > room)
+        5 * num_vertices + num_faces > room)
         throw_input_error(path,
                           "line {}: the header declares {} vertices and {} faces, which the {} "
                           "remaining bytes cannot hold",
@@ -84,7 +87,6 @@ Geometry read_off(const std::string& path, std::string_view data) {
     }
 
     TriangleBuilder triangles(path, num_vertices);
-    triangles.reserve(num_faces);
     std::vector<int64_t> polygon;
     for (int64_t f = 0; f < num_faces; ++f) {
         if (!lines.next_content(line, '#'))

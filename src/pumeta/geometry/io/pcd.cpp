@@ -114,11 +114,11 @@ Header parse_header(const std::string& path, std::string_view data) {
         field.size = sizes[i];
         field.type = types[i];
         field.count = counts[i];
-        const bool valid = field.type == 'F' ? (field.size == 4 || field.size == 8)
-                           : (field.type == 'I' || field.type == 'U')
-                               ? (field.size == 1 || field.size == 2 || field.size == 4 ||
-                                  field.size == 8)
-                               : false;
+        const bool valid =
+            field.type == 'F' ? (field.size == 4 || field.size == 8)
+            : (field.type == 'I' || field.type == 'U')
+                ? (field.size == 1 || field.size == 2 || field.size == 4 || field.size == 8)
+                : false;
         if (!valid)
             throw_input_error(path, "field '{}' has an unsupported TYPE {} with SIZE {}",
                               field.name, field.type, field.size);
@@ -133,20 +133,29 @@ Header parse_header(const std::string& path, std::string_view data) {
 
 double load_field(const char* bytes, const Field& field) {
     switch (field.type) {
-        case 'F': return field.size == 4 ? load<float>(bytes) : load<double>(bytes);
+        case 'F':
+            return field.size == 4 ? load<float>(bytes) : load<double>(bytes);
         case 'I':
             switch (field.size) {
-                case 1: return load<int8_t>(bytes);
-                case 2: return load<int16_t>(bytes);
-                case 4: return load<int32_t>(bytes);
-                default: return static_cast<double>(load<int64_t>(bytes));
+                case 1:
+                    return load<int8_t>(bytes);
+                case 2:
+                    return load<int16_t>(bytes);
+                case 4:
+                    return load<int32_t>(bytes);
+                default:
+                    return static_cast<double>(load<int64_t>(bytes));
             }
         default:
             switch (field.size) {
-                case 1: return load<uint8_t>(bytes);
-                case 2: return load<uint16_t>(bytes);
-                case 4: return load<uint32_t>(bytes);
-                default: return static_cast<double>(load<uint64_t>(bytes));
+                case 1:
+                    return load<uint8_t>(bytes);
+                case 2:
+                    return load<uint16_t>(bytes);
+                case 4:
+                    return load<uint32_t>(bytes);
+                default:
+                    return static_cast<double>(load<uint64_t>(bytes));
             }
     }
 }
@@ -189,20 +198,18 @@ Layout find_fields(const std::string& path, const Header& header) {
     return layout;
 }
 
-Geometry read_binary(std::string_view data, const Header& header,
-                     const Layout& layout, PointCloud cloud) {
+Geometry read_binary(std::string_view data, const Header& header, const Layout& layout,
+                     PointCloud cloud) {
     const char* base = data.data() + header.data_offset;
     const size_t stride = header.record_bytes;
     const int64_t n = static_cast<int64_t>(header.points);
     float* points = cloud.points.data_ptr<float>();
     const Field& x = header.fields[layout.xyz[0]];
-    const bool packed = x.type == 'F' && x.size == 4 &&
-                        header.fields[layout.xyz[1]].offset == x.offset + 4 &&
-                        header.fields[layout.xyz[2]].offset == x.offset + 8 &&
-                        header.fields[layout.xyz[1]].type == 'F' &&
-                        header.fields[layout.xyz[1]].size == 4 &&
-                        header.fields[layout.xyz[2]].type == 'F' &&
-                        header.fields[layout.xyz[2]].size == 4;
+    const bool packed =
+        x.type == 'F' && x.size == 4 && header.fields[layout.xyz[1]].offset == x.offset + 4 &&
+        header.fields[layout.xyz[2]].offset == x.offset + 8 &&
+        header.fields[layout.xyz[1]].type == 'F' && header.fields[layout.xyz[1]].size == 4 &&
+        header.fields[layout.xyz[2]].type == 'F' && header.fields[layout.xyz[2]].size == 4;
     for (int64_t i = 0; i < n; ++i) {
         const char* record = base + i * stride;
         if (packed) {
@@ -275,11 +282,14 @@ Geometry read_ascii(const std::string& path, std::string_view data, const Header
 Geometry read_pcd(const std::string& path, std::string_view data) {
     const Header header = parse_header(path, data);
     const Layout layout = find_fields(path, header);
-    // Each ascii point takes at least two bytes per value; binary ones exactly record_bytes.
+    // Declared counts larger than the data can hold must not reach the allocator: an ascii
+    // point of k values takes at least 2k - 1 bytes, a binary one exactly record_bytes.
     const size_t available = data.size() - header.data_offset;
-    if (header.encoding == Encoding::Ascii && header.points > available / (2 * header.record_tokens) + 1)
-        throw_input_error(path, "the header declares {} points, more than the {} bytes of data "
-                                "can hold",
+    if (header.encoding == Encoding::Ascii &&
+        header.points > available / (2 * header.record_tokens - 1))
+        throw_input_error(path,
+                          "the header declares {} points, more than the {} bytes of data "
+                          "can hold",
                           header.points, available);
     if (header.encoding == Encoding::Binary && header.points > available / header.record_bytes)
         throw_input_error(path,

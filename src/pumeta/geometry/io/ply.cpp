@@ -29,26 +29,30 @@ struct TypeName {
 };
 
 constexpr TypeName kTypeNames[] = {
-    {"char", ScalarType::Int8},     {"int8", ScalarType::Int8},
-    {"uchar", ScalarType::UInt8},   {"uint8", ScalarType::UInt8},
-    {"short", ScalarType::Int16},   {"int16", ScalarType::Int16},
-    {"ushort", ScalarType::UInt16}, {"uint16", ScalarType::UInt16},
-    {"int", ScalarType::Int32},     {"int32", ScalarType::Int32},
-    {"uint", ScalarType::UInt32},   {"uint32", ScalarType::UInt32},
-    {"float", ScalarType::Float32}, {"float32", ScalarType::Float32},
+    {"char", ScalarType::Int8},      {"int8", ScalarType::Int8},
+    {"uchar", ScalarType::UInt8},    {"uint8", ScalarType::UInt8},
+    {"short", ScalarType::Int16},    {"int16", ScalarType::Int16},
+    {"ushort", ScalarType::UInt16},  {"uint16", ScalarType::UInt16},
+    {"int", ScalarType::Int32},      {"int32", ScalarType::Int32},
+    {"uint", ScalarType::UInt32},    {"uint32", ScalarType::UInt32},
+    {"float", ScalarType::Float32},  {"float32", ScalarType::Float32},
     {"double", ScalarType::Float64}, {"float64", ScalarType::Float64},
 };
 
 size_t type_size(ScalarType type) {
     switch (type) {
         case ScalarType::Int8:
-        case ScalarType::UInt8: return 1;
+        case ScalarType::UInt8:
+            return 1;
         case ScalarType::Int16:
-        case ScalarType::UInt16: return 2;
+        case ScalarType::UInt16:
+            return 2;
         case ScalarType::Int32:
         case ScalarType::UInt32:
-        case ScalarType::Float32: return 4;
-        case ScalarType::Float64: return 8;
+        case ScalarType::Float32:
+            return 4;
+        case ScalarType::Float64:
+            return 8;
     }
     return 0;
 }
@@ -59,14 +63,22 @@ bool is_float(ScalarType type) {
 
 double load_value(const char* bytes, ScalarType type, bool swap) {
     switch (type) {
-        case ScalarType::Int8: return load<int8_t>(bytes);
-        case ScalarType::UInt8: return load<uint8_t>(bytes);
-        case ScalarType::Int16: return load<int16_t>(bytes, swap);
-        case ScalarType::UInt16: return load<uint16_t>(bytes, swap);
-        case ScalarType::Int32: return load<int32_t>(bytes, swap);
-        case ScalarType::UInt32: return load<uint32_t>(bytes, swap);
-        case ScalarType::Float32: return load<float>(bytes, swap);
-        case ScalarType::Float64: return load<double>(bytes, swap);
+        case ScalarType::Int8:
+            return load<int8_t>(bytes);
+        case ScalarType::UInt8:
+            return load<uint8_t>(bytes);
+        case ScalarType::Int16:
+            return load<int16_t>(bytes, swap);
+        case ScalarType::UInt16:
+            return load<uint16_t>(bytes, swap);
+        case ScalarType::Int32:
+            return load<int32_t>(bytes, swap);
+        case ScalarType::UInt32:
+            return load<uint32_t>(bytes, swap);
+        case ScalarType::Float32:
+            return load<float>(bytes, swap);
+        case ScalarType::Float64:
+            return load<double>(bytes, swap);
     }
     return 0;
 }
@@ -121,7 +133,8 @@ struct Element {
     int find_scalar(std::initializer_list<const char*> names) const {
         for (size_t i = 0; i < properties.size(); ++i)
             for (const char* name : names)
-                if (!properties[i].is_list && properties[i].name == name) return static_cast<int>(i);
+                if (!properties[i].is_list && properties[i].name == name)
+                    return static_cast<int>(i);
         return -1;
     }
     int find_list(std::initializer_list<const char*> names) const {
@@ -156,7 +169,7 @@ Header parse_header(const std::string& path, std::string_view data) {
     while (lines.next(line)) {
         const int64_t number = lines.line_number();
         split_tokens(line, tokens);
-        if (tokens.empty() || tokens[0] == "comment" || tokens[0] == "obj_info") continue;
+        if (tokens.empty()) continue;
         const std::string_view keyword = tokens[0];
         if (keyword == "end_header") {
             if (!have_format) throw_input_error(path, "PLY header has no 'format' line");
@@ -165,7 +178,8 @@ Header parse_header(const std::string& path, std::string_view data) {
             return header;
         }
         if (keyword == "format") {
-            if (tokens.size() < 2) throw_input_error(path, "line {}: 'format' without a value", number);
+            if (tokens.size() < 2)
+                throw_input_error(path, "line {}: 'format' without a value", number);
             if (tokens[1] == "ascii") {
                 header.encoding = Encoding::Ascii;
             } else if (tokens[1] == "binary_little_endian") {
@@ -203,10 +217,9 @@ Header parse_header(const std::string& path, std::string_view data) {
                                   printable(line));
             }
             header.elements.back().properties.push_back(property);
-        } else {
-            throw_input_error(path, "line {}: unexpected PLY header line '{}'", number,
-                              printable(line));
         }
+        // Other lines are skipped like comments: old exporters (Blender 2.4) wrote free text
+        // without the "comment" keyword.
     }
     throw_input_error(path, "PLY header has no 'end_header' line");
 }
@@ -312,7 +325,6 @@ class BinaryReader {
                 read_vertices(element, layout, *vertices);
             } else if (static_cast<int>(e) == faces.element) {
                 triangles.emplace(path_, vertex_count());
-                triangles->reserve(element.count);
                 read_faces(element, faces.property, *triangles);
             } else {
                 skip(element);
@@ -389,7 +401,8 @@ class BinaryReader {
                 position_ += count_size;
                 const size_t item_size = type_size(property.type);
                 const uint64_t items = static_cast<uint64_t>(length);
-                if (items > remaining() / item_size) fail_truncated(element, row, items * item_size);
+                if (items > remaining() / item_size)
+                    fail_truncated(element, row, items * item_size);
                 on_list(row, p, items, data_.data() + position_);
                 position_ += items * item_size;
             }
@@ -423,9 +436,14 @@ class BinaryReader {
                 const int target = layout.target[p];
                 if (target < 6) continue;
                 const ScalarType type = element.properties[p].type;
+                const char* value = base + offsets[p];
+                if (type == ScalarType::UInt8) {
+                    uint8_t* out = sink.color_data + (target - 6);
+                    for (int64_t row = 0; row < count; ++row) out[3 * row] = value[row * stride];
+                    continue;
+                }
                 for (int64_t row = 0; row < count; ++row)
-                    sink.store(row, target, load_value(base + row * stride + offsets[p], type, swap_),
-                               type);
+                    sink.store(row, target, load_value(value + row * stride, type, swap_), type);
             }
         }
         position_ += stride * element.count;
@@ -482,8 +500,9 @@ class BinaryReader {
             position_ += element.min_row_bytes() * element.count;  // checked up front
             return;
         }
-        walk(element, [](uint64_t, size_t, const char*) {},
-             [](uint64_t, size_t, uint64_t, const char*) {});
+        walk(
+            element, [](uint64_t, size_t, const char*) {},
+            [](uint64_t, size_t, uint64_t, const char*) {});
     }
 
     const std::string& path_;
@@ -520,15 +539,17 @@ class AsciiReader {
             if (!vertices && element.name == "vertex") {
                 layout = vertex_layout(path_, element);
                 vertices.emplace(static_cast<int64_t>(element.count), *layout);
-                read_rows(element, [&](uint64_t row, size_t p, std::string_view token) {
-                    const int target = layout->target[p];
-                    if (target < 0) return;
-                    const ScalarType type = element.properties[p].type;
-                    vertices->store(row, target, parse(token, type, "a number"), type);
-                }, [](uint64_t, size_t, size_t, const std::string_view*) {});
+                read_rows(
+                    element,
+                    [&](uint64_t row, size_t p, std::string_view token) {
+                        const int target = layout->target[p];
+                        if (target < 0) return;
+                        const ScalarType type = element.properties[p].type;
+                        vertices->store(row, target, parse(token, type, "a number"), type);
+                    },
+                    [](uint64_t, size_t, size_t, const std::string_view*) {});
             } else if (static_cast<int>(e) == faces.element) {
                 triangles.emplace(path_, vertex_count);
-                triangles->reserve(element.count);
                 const ScalarType type = element.properties[faces.property].type;
                 read_rows(
                     element, [](uint64_t, size_t, std::string_view) {},
@@ -536,15 +557,17 @@ class AsciiReader {
                         if (static_cast<int>(p) != faces.property) return;
                         polygon.resize(length);
                         for (size_t i = 0; i < length; ++i)
-                            polygon[i] = static_cast<int64_t>(parse(items[i], type, "a vertex index"));
+                            polygon[i] =
+                                static_cast<int64_t>(parse(items[i], type, "a vertex index"));
                         const int64_t line = lines_.line_number();
                         triangles->add_polygon(polygon.data(), length, [&] {
                             return fmt::format("line {} (face {})", line, row);
                         });
                     });
             } else {
-                read_rows(element, [](uint64_t, size_t, std::string_view) {},
-                          [](uint64_t, size_t, size_t, const std::string_view*) {});
+                read_rows(
+                    element, [](uint64_t, size_t, std::string_view) {},
+                    [](uint64_t, size_t, size_t, const std::string_view*) {});
             }
         }
         if (!vertices) throw_input_error(path_, "the PLY file has no 'vertex' element");
@@ -553,23 +576,24 @@ class AsciiReader {
     }
 
   private:
-    // Each value takes at least two bytes (a digit and a separator): a larger count is a lie
-    // that must not reach the allocator.
+    // A row of k values takes at least 2k - 1 bytes (digits and separators), so a larger
+    // count is a lie that must not reach the allocator. Smaller lies are reported with their
+    // line number while reading.
     void check_declared_size(const Element& element) const {
-        const uint64_t row = 2 * std::max<size_t>(element.properties.size(), 1);
-        const uint64_t available = data_.size() - std::min(lines_.offset(), data_.size()) + 1;
+        const uint64_t available = data_.size() - std::min(lines_.offset(), data_.size());
+        const uint64_t row = 2 * element.properties.size() - 1;
         if (element.count > available / row)
             throw_input_error(path_,
                               "the header declares {} '{}' rows, more than the {} bytes left "
                               "after line {} can hold",
-                              element.count, element.name, available - 1, lines_.line_number());
+                              element.count, element.name, available, lines_.line_number());
     }
 
     double parse(std::string_view token, ScalarType type, const char* what) const {
         double value;
         if (!parse_value(token, type, value))
-            throw_input_error(path_, "line {}: expected {}, found '{}'", lines_.line_number(),
-                              what, printable(token));
+            throw_input_error(path_, "line {}: expected {}, found '{}'", lines_.line_number(), what,
+                              printable(token));
         return value;
     }
 

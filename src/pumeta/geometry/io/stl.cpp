@@ -150,8 +150,9 @@ Geometry read_stl(const std::string& path, std::string_view data) {
                               count, expected, data.size());
     }
     if (!starts_solid)
-        throw_input_error(path, "not an STL file: {} bytes, too short for a binary STL and no "
-                                "'solid' at the start",
+        throw_input_error(path,
+                          "not an STL file: {} bytes, too short for a binary STL and no "
+                          "'solid' at the start",
                           data.size());
     return read_ascii(path, data);
 }

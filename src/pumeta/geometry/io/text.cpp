@@ -81,13 +81,9 @@ void split_tokens(std::string_view line, std::vector<std::string_view>& tokens,
     }
 }
 
-bool parse_number(std::string_view token, float& value) {
-    return parse_float(token, value);
-}
+bool parse_number(std::string_view token, float& value) { return parse_float(token, value); }
 
-bool parse_number(std::string_view token, double& value) {
-    return parse_float(token, value);
-}
+bool parse_number(std::string_view token, double& value) { return parse_float(token, value); }
 
 bool parse_number(std::string_view token, int64_t& value) {
     token = without_plus(token);

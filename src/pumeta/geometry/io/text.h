@@ -58,8 +58,7 @@ std::string printable(std::string_view token);
 
 /// Parses `token` or throws InputError "<path>: line <line>: expected <what>, found '<token>'".
 template <typename T>
-T parse_or_throw(std::string_view token, const std::string& path, int64_t line,
-                 const char* what) {
+T parse_or_throw(std::string_view token, const std::string& path, int64_t line, const char* what) {
     T value;
     if (!parse_number(token, value))
         throw_input_error(path, "line {}: expected {}, found '{}'", line, what, printable(token));

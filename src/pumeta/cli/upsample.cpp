@@ -1,0 +1,183 @@
+// pumeta upsample IN -o OUT [--model M] [--ratio R] [--tta-steps N] ...; pumeta eval ...;
+// pumeta meta-train --config C.
+#include <spdlog/spdlog.h>
+
+#include <cmath>
+#include <iostream>
+
+#include "pumeta/cli/commands.h"
+#include "pumeta/cli/config_file.h"
+#include "pumeta/core/device.h"
+#include "pumeta/eval/evaluate_cases.h"
+#include "pumeta/inference/model_file.h"
+#include "pumeta/meta/meta_trainer.h"
+
+namespace pumeta::cli {
+
+namespace {
+
+/// Options shared by upsample and eval.
+struct ModelArgs {
+    std::string model;
+    int64_t ratio = 0;
+    uint64_t seed = 0;
+    int64_t tta_steps = -1;  // -1: the model's meta-trained N, or 0
+    double tta_lr = -1;      // <0: the model's meta-trained alpha
+    std::string tta_unit = "object";
+    int64_t batch_patches = 64;
+    std::string device = "cpu";
+};
+
+void add_model_options(CLI::App& command, ModelArgs& args) {
+    command.add_option("--model", args.model,
+                       "checkpoint (default: the shipped " + default_model_path() + ")");
+    command.add_option("--ratio", args.ratio, "upsampling ratio (default: the model's)")
+        ->check(CLI::NonNegativeNumber);
+    command.add_option("--seed", args.seed, "seed of the test-time downsampler");
+    command.add_option("--tta-steps", args.tta_steps,
+                       "test-time adaptation steps N (default: a meta-trained model's N, else 0)");
+    command.add_option("--tta-lr", args.tta_lr, "inner step size (default: the model's)");
+    command.add_option("--tta-unit", args.tta_unit, "adapt once per object or per patch")
+        ->check(CLI::IsMember({"object", "patch"}));
+    command.add_option("--batch-patches", args.batch_patches, "patches per forward pass")
+        ->check(CLI::PositiveNumber);
+    command.add_option("--device", args.device, "cpu or cuda");
+}
+
+UpsampleOptions make_upsample_options(const ModelArgs& args, const InferenceModel& model) {
+    UpsampleOptions o;
+    o.ratio = args.ratio;
+    o.seed = args.seed;
+    o.batch_patches = args.batch_patches;
+    o.tta_unit = args.tta_unit;
+    o.meta = model.meta;
+    o.step_sizes = model.step_sizes;
+    o.tta_steps = args.tta_steps >= 0 ? args.tta_steps
+                                      : (model.meta_trained ? model.meta.inner_steps : 0);
+    if (args.tta_lr >= 0) {
+        o.meta.inner_lr = args.tta_lr;
+        o.step_sizes.clear();
+    } else if (!model.meta_trained && o.tta_steps > 0) {
+        spdlog::warn("--tta-steps without --tta-lr on a model that is not meta-trained: using "
+                     "inner_lr {}", o.meta.inner_lr);
+    }
+    return o;
+}
+
+InferenceModel load_model(const ModelArgs& args) {
+    std::string device = parse_device(args.device);
+    InferenceModel model =
+        load_inference_model(args.model.empty() ? default_model_path() : args.model);
+    model.backbone->to(device);
+    return model;
+}
+
+}  // namespace
+
+void add_upsample_command(CLI::App& app) {
+    struct Args {
+        std::string input, output;
+        bool json = false;
+        ReadOptions read;
+        ModelArgs model;
+    };
+    auto args = std::make_shared<Args>();
+    CLI::App* command =
+        app.add_subcommand("upsample", "upsample a point cloud (with test-time adaptation)");
+    command->add_option("input", args->input, "input cloud (any readable format)")->required();
+    command->add_option("-o,--output", args->output, "output cloud")->required();
+    command->add_flag("--json", args->json,
+                      "print n_in, n_out, seconds (and tta_* fields) as JSON");
+    add_read_options(*command, args->read);
+    add_model_options(*command, args->model);
+    command->callback([args] {
+        InferenceModel model = load_model(args->model);
+        PointCloud cloud = read_point_cloud(args->input, args->read);
+        UpsampleOptions options = make_upsample_options(args->model, model);
+        UpsampleResult result = upsample_cloud(*model.backbone, cloud.points, options);
+        write_point_cloud(args->output, {result.points});
+        nlohmann::json j = {{"n_in", result.n_in},
+                            {"n_out", result.points.size(0)},
+                            {"seconds", result.seconds}};
+        if (options.tta_steps > 0) {
+            j["tta_steps"] = options.tta_steps;
+            j["tta_seconds"] = result.tta_seconds;
+            j["loss_before"] = result.loss_before;
+            j["loss_after"] = result.loss_after;
+        }
+        if (args->json)
+            print_json(j);
+        else
+            spdlog::info("upsample: {} -> {} points in {:.2f} s{}", result.n_in,
+                         result.points.size(0), result.seconds,
+                         options.tta_steps > 0
+                             ? fmt::format(" (adaptation: {} steps, {:.2f} s, loss {:.3e} -> {:.3e})",
+                                           options.tta_steps, result.tta_seconds,
+                                           result.loss_before, result.loss_after)
+                             : "");
+    });
+}
+
+void add_eval_command(CLI::App& app, const std::string& command_line) {
+    struct Args {
+        std::string cases, output;
+        EvalOptions eval;
+        ModelArgs model;
+    };
+    auto args = std::make_shared<Args>();
+    args->eval.command_line = command_line;
+    CLI::App* command = app.add_subcommand("eval", "score a method on the test cases of a split");
+    command->add_option("--cases", args->cases, "a cases/<set>/x<r> directory of make-dataset")
+        ->required();
+    command->add_option("-o,--output", args->output, "output directory (cases.csv, summary.json)")
+        ->required();
+    command->add_option("--method", args->eval.method, "network, midpoint, input or floor")
+        ->check(CLI::IsMember({"network", "midpoint", "input", "floor"}));
+    command->add_option("--noise", args->eval.noise, "noisy input variant (rel1, abs0.01, ...)");
+    command->add_option("--max-cases", args->eval.max_cases, "only the first N cases");
+    command->add_flag("--save-predictions", args->eval.save_predictions,
+                      "write predictions to OUT/pred/");
+    add_model_options(*command, args->model);
+    command->callback([args] {
+        InferenceModel model;
+        if (args->eval.method == "network") {
+            model = load_model(args->model);
+            args->eval.upsample = make_upsample_options(args->model, model);
+        }
+        nlohmann::json summary =
+            evaluate_cases(args->cases, model.backbone.get(), args->eval, args->output);
+        print_json(summary);
+    });
+}
+
+void add_meta_train_command(CLI::App& app) {
+    struct Args {
+        std::string config;
+        std::vector<std::string> overrides;
+        bool resume = false;
+        bool first_order = false;
+        double max_minutes = 0;
+    };
+    auto args = std::make_shared<Args>();
+    CLI::App* command =
+        app.add_subcommand("meta-train", "meta-train a pretrained model (MAML, Algorithm 1)");
+    command->add_option("--config", args->config, "meta-training config JSON")->required();
+    command->add_option("--set", args->overrides, "override a config field: key=value");
+    command->add_flag("--resume", args->resume, "continue the run in run_dir");
+    command->add_flag("--first-order", args->first_order, "first-order MAML (FOMAML)");
+    command->add_option("--max-minutes", args->max_minutes,
+                        "checkpoint and stop after this many minutes (0 = no limit)");
+    command->callback([args] {
+        nlohmann::json j = read_json_file(args->config);
+        apply_overrides(j, args->overrides);
+        if (args->first_order) j["meta"]["first_order"] = true;
+        MetaTrainResult r =
+            meta_train(MetaTrainConfig::from_json(j), args->resume, args->max_minutes * 60.0);
+        print_json({{"steps", r.steps},
+                    {"val_cd_before", r.last.cd_before},
+                    {"val_cd_after", r.last.cd_after},
+                    {"best_val_cd_after", r.best_cd_after}});
+    });
+}
+
+}  // namespace pumeta::cli

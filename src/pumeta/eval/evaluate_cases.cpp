@@ -1,0 +1,155 @@
+#include "pumeta/eval/evaluate_cases.h"
+
+#include <ATen/ATen.h>
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include "pumeta/core/error.h"
+#include "pumeta/core/progress.h"
+#include "pumeta/geometry/io.h"
+#include "pumeta/metrics/metrics.h"
+
+namespace pumeta {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Stats {
+    std::vector<double> values;
+    void add(double v) {
+        if (std::isfinite(v)) values.push_back(v);
+    }
+    nlohmann::json summary() const {
+        if (values.empty()) return nullptr;
+        std::vector<double> sorted = values;
+        std::sort(sorted.begin(), sorted.end());
+        double sum = 0;
+        for (double v : values) sum += v;
+        size_t n = sorted.size();
+        double median = n % 2 ? sorted[n / 2] : 0.5 * (sorted[n / 2 - 1] + sorted[n / 2]);
+        return {{"mean", sum / n}, {"median", median}, {"count", n}};
+    }
+};
+
+std::string csv_number(double v) { return std::isfinite(v) ? fmt::format("{:.9g}", v) : ""; }
+
+}  // namespace
+
+nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* model,
+                              const EvalOptions& options, const std::string& out_dir) {
+    fs::path index_file = fs::path(cases_dir) / "cases.json";
+    if (!fs::exists(index_file))
+        throw_input_error(cases_dir, "no cases.json: not a test-case directory of make-dataset");
+    nlohmann::json index;
+    try {
+        index = nlohmann::json::parse(std::ifstream(index_file));
+    } catch (const nlohmann::json::parse_error& e) {
+        throw_input_error(index_file.string(), "invalid JSON at byte {}", e.byte);
+    }
+    if (options.method == "network" && !model)
+        throw_input_error("eval", "method 'network' needs --model");
+    int64_t ratio = index.at("ratio");
+    UpsampleOptions upsample = options.upsample;
+    upsample.ratio = ratio;
+    fs::create_directories(out_dir);
+    if (options.save_predictions) fs::create_directories(fs::path(out_dir) / "pred");
+
+    std::vector<nlohmann::json> cases = index.at("cases").get<std::vector<nlohmann::json>>();
+    if (options.max_cases > 0 && static_cast<int64_t>(cases.size()) > options.max_cases)
+        cases.resize(options.max_cases);
+    std::string csv_tmp = (fs::path(out_dir) / "cases.csv.tmp").string();
+    std::ofstream csv(csv_tmp);
+    csv << "case,n_in,n_out,cd,hd,p2f,psnr,seconds,tta_seconds,loss_before,loss_after\n";
+    Stats cd, hd, p2f, psnr, seconds, tta_seconds, loss_before, loss_after;
+    int64_t improved_inner = 0;
+    ProgressBar progress(static_cast<int64_t>(cases.size()), "eval");
+    for (size_t i = 0; i < cases.size(); ++i) {
+        const nlohmann::json& c = cases[i];
+        fs::path dir = fs::path(cases_dir) / c.at("name").get<std::string>();
+        std::string input_file = "input.ply";
+        if (!options.noise.empty()) {
+            if (!c.contains("noisy_inputs") || !c["noisy_inputs"].contains(options.noise))
+                throw_input_error(dir.string(), "no noisy input '{}'", options.noise);
+            input_file = c["noisy_inputs"][options.noise];
+        }
+        at::Tensor input = read_point_cloud((dir / input_file).string()).points;
+        at::Tensor gt = read_point_cloud((dir / "gt.ply").string()).points;
+        TriangleMesh mesh;
+        bool has_mesh = !c.value("mesh", nlohmann::json()).is_null();
+        if (has_mesh) mesh = read_mesh((dir / c["mesh"].get<std::string>()).string());
+
+        UpsampleResult result;
+        auto start = std::chrono::steady_clock::now();
+        if (options.method == "network") {
+            result = upsample_cloud(*model, input, upsample);
+        } else if (options.method == "midpoint") {
+            result.points = midpoint_upsample(input, ratio);
+        } else if (options.method == "input") {
+            result.points = input;
+        } else if (options.method == "floor") {
+            if (c.value("gt_alt", nlohmann::json()).is_null())
+                throw_input_error(dir.string(), "case has no gt_alt.ply for the sampling floor");
+            result.points = read_point_cloud((dir / c["gt_alt"].get<std::string>()).string()).points;
+        } else {
+            throw_input_error("--method", "unknown method '{}'", options.method);
+        }
+        if (options.method != "network")
+            result.seconds =
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        MetricReport m = evaluate(result.points, gt, has_mesh ? &mesh : nullptr);
+        double p2f_value = m.p2f ? *m.p2f : std::nan("");
+        cd.add(m.cd);
+        hd.add(m.hd);
+        p2f.add(p2f_value);
+        psnr.add(m.psnr);
+        seconds.add(result.seconds);
+        tta_seconds.add(options.upsample.tta_steps > 0 ? result.tta_seconds : std::nan(""));
+        loss_before.add(result.loss_before);
+        loss_after.add(result.loss_after);
+        if (result.loss_after < result.loss_before) ++improved_inner;
+        csv << c["name"].get<std::string>() << "," << input.size(0) << "," << m.n_pred << ","
+            << csv_number(m.cd) << "," << csv_number(m.hd) << "," << csv_number(p2f_value) << ","
+            << csv_number(m.psnr) << "," << csv_number(result.seconds) << ","
+            << csv_number(options.upsample.tta_steps > 0 ? result.tta_seconds : std::nan(""))
+            << "," << csv_number(result.loss_before) << "," << csv_number(result.loss_after)
+            << "\n";
+        if (options.save_predictions)
+            write_point_cloud((fs::path(out_dir) / "pred" / (c["name"].get<std::string>() + ".ply"))
+                                  .string(),
+                              {result.points});
+        progress.update(static_cast<int64_t>(i + 1), fmt::format("CD {:.3e}", m.cd));
+    }
+    progress.finish();
+    csv.close();
+    fs::rename(csv_tmp, fs::path(out_dir) / "cases.csv");
+
+    nlohmann::json summary = {{"cases_dir", cases_dir},
+                              {"set", index.value("set", "")},
+                              {"ratio", ratio},
+                              {"method", options.method},
+                              {"noise", options.noise},
+                              {"count", cases.size()},
+                              {"cd", cd.summary()},
+                              {"hd", hd.summary()},
+                              {"p2f", p2f.summary()},
+                              {"psnr", psnr.summary()},
+                              {"seconds", seconds.summary()},
+                              {"command", options.command_line}};
+    if (options.upsample.tta_steps > 0) {
+        summary["tta"] = {{"steps", options.upsample.tta_steps},
+                          {"unit", options.upsample.tta_unit},
+                          {"seconds", tta_seconds.summary()},
+                          {"loss_before", loss_before.summary()},
+                          {"loss_after", loss_after.summary()},
+                          {"inner_loss_improved", improved_inner}};
+    }
+    std::ofstream(fs::path(out_dir) / "summary.json") << summary.dump(2) << "\n";
+    return summary;
+}
+
+}  // namespace pumeta

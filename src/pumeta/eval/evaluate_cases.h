@@ -1,0 +1,36 @@
+// Scoring a method on every test case of a split (dataset layout: data/dataset.h):
+// upsample each case's input, score it against its GT in the GT frame, write a per-case CSV
+// and a summary JSON. Every number in docs/ comes from here (`pumeta eval`).
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <string>
+
+#include "pumeta/inference/upsample.h"
+
+namespace pumeta {
+
+struct EvalOptions {
+    /// "network" (the model), "midpoint" (non-learned baseline), "input" (the input itself,
+    /// unchanged: the reference any method must beat), "floor" (a second independent GT sample:
+    /// the sampling floor; cases with gt_alt only).
+    std::string method = "network";
+    /// Input variant: "" = clean, or a key of the case's noisy inputs ("rel1", "abs0.01").
+    std::string noise;
+    /// Evaluate only the first max_cases cases (0 = all).
+    int64_t max_cases = 0;
+    /// Write each prediction as <out_dir>/pred/<case>.ply.
+    bool save_predictions = false;
+    UpsampleOptions upsample;
+    /// Recorded in the summary.
+    std::string command_line;
+};
+
+/// cases_dir: a cases/<set>/x<r> directory holding cases.json. model may be null unless the
+/// method is "network". Returns the summary (also written to out_dir/summary.json; per-case
+/// rows to out_dir/cases.csv).
+nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* model,
+                              const EvalOptions& options, const std::string& out_dir);
+
+}  // namespace pumeta

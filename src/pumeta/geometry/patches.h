@@ -1,0 +1,34 @@
+// Cutting a cloud into overlapping local patches (seed + k nearest neighbours), each
+// normalised to the unit sphere on its own, and mapping results back (reference §2,
+// "Whole-cloud inference").
+#pragma once
+
+#include <ATen/core/Tensor.h>
+
+#include <cstdint>
+
+namespace pumeta {
+
+struct Patches {
+    at::Tensor points;   ///< float32 [P,n,3], each patch centred and scaled to radius 1
+    at::Tensor indices;  ///< int64 [P,n], rows of the source cloud
+    at::Tensor centers;  ///< float32 [P,3], patch centroids in the cloud's frame
+    at::Tensor scales;   ///< float32 [P], patch radii (points = (p - center) / scale)
+    at::Tensor seeds;    ///< int64 [P], the seed point of each patch
+};
+
+struct PatchOptions {
+    /// Points per patch n (clamped to the cloud size).
+    int64_t patch_size = 256;
+    /// Seeds = ceil(N / n · coverage): each point lies in about `coverage` patches.
+    double coverage = 3.0;
+};
+
+/// Patches of a cloud [N,3]: seeds by farthest point sampling (from point 0), each patch the
+/// seed's n nearest neighbours. Deterministic.
+Patches extract_patches(const at::Tensor& cloud, const PatchOptions& options = {});
+
+/// Maps per-patch results [P,m,3] in the patches' normalised frames back to the cloud frame.
+at::Tensor denormalize_patches(const Patches& patches, const at::Tensor& results);
+
+}  // namespace pumeta

@@ -1,0 +1,30 @@
+#include "pumeta/inference/model_file.h"
+
+#include <cstdlib>
+#include <filesystem>
+
+#include "pumeta/models/checkpoint.h"
+
+namespace pumeta {
+
+InferenceModel load_inference_model(const std::string& path) {
+    LoadedCheckpoint checkpoint = load_checkpoint(path);
+    InferenceModel model;
+    model.backbone = std::move(checkpoint.backbone);
+    model.extra = checkpoint.extra;
+    if (model.extra.is_object() && model.extra.contains("meta")) {
+        model.meta_trained = true;
+        model.meta = MetaOptions::from_json(model.extra["meta"]);
+        if (model.extra.contains("step_sizes"))
+            model.step_sizes = step_sizes_from_json(model.extra["step_sizes"]);
+    }
+    return model;
+}
+
+std::string default_model_path(const std::string& name) {
+    if (const char* dir = std::getenv("PUMETA_MODELS"))
+        return (std::filesystem::path(dir) / name).string();
+    return (std::filesystem::path(PUMETA_SOURCE_DIR) / "models" / name).string();
+}
+
+}  // namespace pumeta

@@ -1,0 +1,30 @@
+// Loading a model for inference: a pretrained or meta-trained checkpoint, with the meta
+// options a meta-trained one carries.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <memory>
+#include <string>
+
+#include "pumeta/meta/maml.h"
+#include "pumeta/models/backbone.h"
+
+namespace pumeta {
+
+struct InferenceModel {
+    std::unique_ptr<Backbone> backbone;
+    /// Meta-trained: the inner-loop settings it was meta-trained with.
+    bool meta_trained = false;
+    MetaOptions meta;
+    StepSizes step_sizes;
+    nlohmann::json extra;
+};
+
+InferenceModel load_inference_model(const std::string& path);
+
+/// The shipped model used when --model is not given: $PUMETA_MODELS/<name> if set, else the
+/// source tree's models/<name>.
+std::string default_model_path(const std::string& name = "pugcn-x4.pt");
+
+}  // namespace pumeta

@@ -1,0 +1,164 @@
+#include "pumeta/inference/upsample.h"
+
+#include <ATen/ATen.h>
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <cmath>
+#include <random>
+
+#include "pumeta/core/error.h"
+#include "pumeta/core/tensor_checks.h"
+#include "pumeta/geometry/knn.h"
+#include "pumeta/geometry/normalize.h"
+#include "pumeta/geometry/patches.h"
+#include "pumeta/geometry/sampling.h"
+
+namespace pumeta {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double seconds_since(Clock::time_point start) {
+    return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+/// Exactly `count` points out of candidates: FPS when affordable, else random removal or
+/// duplication of the few points by which `candidates` misses `count`.
+at::Tensor select_exactly(const at::Tensor& candidates, int64_t count, int64_t fps_limit,
+                          uint64_t seed) {
+    int64_t m = candidates.size(0);
+    if (m == count) return candidates;
+    if (m > count && m <= fps_limit)
+        return candidates.index_select(0, farthest_point_sampling(candidates, count, 0));
+    if (m > count) return candidates.index_select(0, random_subset(m, count, seed));
+    at::Tensor extra = candidates.index_select(0, random_subset(m, count - m, seed));
+    return at::cat({candidates, extra});
+}
+
+/// Keeps the outputs of each patch that fall in the region the patch "owns": an output point
+/// survives when the nearest input point to it has the patch's seed as its nearest seed.
+/// Each input point thus contributes through one patch only, giving about ratio·N points.
+at::Tensor merge_by_ownership(const at::Tensor& cloud, const Patches& patches,
+                              const at::Tensor& outputs /*[P,m,3]*/) {
+    at::Tensor seed_points = cloud.index_select(0, patches.seeds);
+    at::Tensor owner = knn(seed_points, cloud, 1).indices.squeeze(1);  // [N] patch id
+    int64_t p = outputs.size(0), m = outputs.size(1);
+    at::Tensor flat = outputs.reshape({p * m, 3}).contiguous();
+    at::Tensor nearest_input = knn(cloud, flat, 1).indices.squeeze(1);  // [P·m]
+    at::Tensor patch_of_output = at::arange(p, at::kLong).repeat_interleave(m);
+    at::Tensor keep = owner.index_select(0, nearest_input) == patch_of_output;
+    return flat.index({keep});
+}
+
+at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
+                         const UpsampleOptions& options, UpsampleResult& result) {
+    int64_t r = model.ratio();
+    PatchOptions patch_options;
+    patch_options.patch_size = model.patch_size();
+    patch_options.coverage = options.coverage;
+    Patches patches = extract_patches(cloud, patch_options);
+    int64_t num_patches = patches.points.size(0);
+
+    // Test-time adaptation (Algorithm 2): θ' from N steps on L(F_θ(X↓), X).
+    ParamMap object_params = model.parameters();
+    MetaOptions meta = options.meta;
+    meta.inner_steps = options.tta_steps;
+    auto tta_start = Clock::now();
+    auto adapt_on = [&](const at::Tensor& x, uint64_t seed) {
+        at::Tensor x_down = model.downsample(x, seed);
+        std::vector<double> losses;
+        ParamMap adapted = adapt(model, model.parameters(), x_down, x, meta, options.step_sizes,
+                                 /*create_graph=*/false, &losses);
+        return std::make_pair(adapted, losses);
+    };
+    if (options.tta_steps > 0 && options.tta_unit == "object") {
+        at::Tensor x = patches.points;
+        if (num_patches > options.tta_max_patches) {
+            at::Tensor pick = random_subset(num_patches, options.tta_max_patches, options.seed);
+            x = x.index_select(0, pick);
+        }
+        auto [adapted, losses] = adapt_on(x, options.seed);
+        object_params = std::move(adapted);
+        result.loss_before = losses.front();
+        result.loss_after = losses.back();
+    } else if (options.tta_steps > 0 && options.tta_unit != "patch") {
+        throw_input_error("--tta-unit", "expected object or patch, found '{}'", options.tta_unit);
+    }
+    result.tta_seconds += seconds_since(tta_start);
+
+    std::vector<at::Tensor> outputs;
+    double before_sum = 0, after_sum = 0;
+    for (int64_t start = 0; start < num_patches; start += options.batch_patches) {
+        int64_t end = std::min(num_patches, start + options.batch_patches);
+        at::Tensor chunk = patches.points.slice(0, start, end);
+        if (options.tta_steps > 0 && options.tta_unit == "patch") {
+            for (int64_t i = 0; i < chunk.size(0); ++i) {
+                at::Tensor x = chunk.slice(0, i, i + 1);
+                auto t0 = Clock::now();
+                auto [adapted, losses] = adapt_on(x, options.seed + start + i);
+                result.tta_seconds += seconds_since(t0);
+                before_sum += losses.front();
+                after_sum += losses.back();
+                at::NoGradGuard no_grad;
+                outputs.push_back(model.upsample(x, adapted));
+            }
+            continue;
+        }
+        at::NoGradGuard no_grad;
+        outputs.push_back(model.upsample(chunk, object_params));
+    }
+    if (options.tta_steps > 0 && options.tta_unit == "patch") {
+        result.loss_before = before_sum / num_patches;
+        result.loss_after = after_sum / num_patches;
+    }
+    at::Tensor upsampled = denormalize_patches(patches, at::cat(outputs));  // [P, m, 3]
+    int64_t target = r * cloud.size(0);
+    at::Tensor candidates = upsampled.reshape({-1, 3}).contiguous();
+    if (candidates.size(0) > options.fps_merge_limit)
+        candidates = merge_by_ownership(cloud, patches, upsampled);
+    return select_exactly(candidates, target, options.fps_merge_limit, options.seed);
+}
+
+}  // namespace
+
+UpsampleResult upsample_cloud(const Backbone& model, const at::Tensor& points,
+                              const UpsampleOptions& options) {
+    check_points(points, "upsample input", 1);
+    auto start = Clock::now();
+    int64_t ratio = options.ratio == 0 ? model.ratio() : options.ratio;
+    int64_t passes = 0;
+    for (int64_t r = 1; r < ratio; r *= model.ratio()) ++passes;
+    if (static_cast<int64_t>(std::pow(model.ratio(), passes)) != ratio)
+        throw_input_error("--ratio", "ratio {} is not a power of the model's ratio {}", ratio,
+                          model.ratio());
+    UpsampleResult result;
+    result.n_in = points.size(0);
+    Normalization frame = unit_sphere_normalization(points);
+    at::Tensor cloud = frame.apply(points).contiguous();
+    for (int64_t pass = 0; pass < passes; ++pass) {
+        UpsampleOptions pass_options = options;
+        pass_options.seed = options.seed + 7919 * pass;
+        cloud = upsample_once(model, cloud, pass_options, result).contiguous();
+    }
+    result.points = frame.invert(cloud);
+    result.seconds = seconds_since(start);
+    return result;
+}
+
+at::Tensor midpoint_upsample(const at::Tensor& points, int64_t ratio, int64_t k) {
+    check_points(points, "midpoint input", 2);
+    if (k <= 0) k = ratio;
+    k = std::min(k, points.size(0) - 1);
+    // Neighbour 0 is the point itself.
+    at::Tensor neighbours = knn(points, points, k + 1).indices.slice(1, 1);
+    at::Tensor mids = (points.unsqueeze(1) + points.index_select(0, neighbours.flatten())
+                                                 .view({points.size(0), k, 3})) *
+                      0.5f;
+    at::Tensor candidates = at::cat({points, mids.reshape({-1, 3})}).contiguous();
+    int64_t target = ratio * points.size(0);
+    return select_exactly(candidates, target, std::numeric_limits<int64_t>::max(), 0);
+}
+
+}  // namespace pumeta

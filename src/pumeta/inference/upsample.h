@@ -1,0 +1,63 @@
+// Whole-cloud upsampling with a trained backbone: the patch pipeline of reference §2, with
+// optional test-time adaptation (paper Algorithm 2) before predicting.
+#pragma once
+
+#include <ATen/core/Tensor.h>
+
+#include <cstdint>
+#include <limits>
+#include <string>
+
+#include "pumeta/meta/maml.h"
+#include "pumeta/models/backbone.h"
+
+namespace pumeta {
+
+struct UpsampleOptions {
+    /// Output ratio; 0 = the model's. A power of the model's ratio (16 = 4 twice) applies the
+    /// model repeatedly.
+    int64_t ratio = 0;
+    /// Patches per forward pass (bounds memory).
+    int64_t batch_patches = 64;
+    /// Each input point lies in about this many patches.
+    double coverage = 3.0;
+    /// Seed of the test-time downsampler (the only randomness of the pipeline).
+    uint64_t seed = 0;
+    /// Test-time adaptation steps N (0 = plain backbone).
+    int64_t tta_steps = 0;
+    /// "object": one adaptation on all patches of the input (a batch), θ' used for every
+    /// patch; "patch": each patch adapts on its own.
+    std::string tta_unit = "object";
+    /// Inner-loop settings (step size, which parameters adapt); inner_steps is ignored in
+    /// favour of tta_steps.
+    MetaOptions meta;
+    /// Meta-SGD step sizes from a meta-trained checkpoint (empty: meta.inner_lr).
+    StepSizes step_sizes;
+    /// In object mode the inner loss of each step uses at most this many patches (a seeded
+    /// minibatch), so adaptation cost stays bounded on huge inputs.
+    int64_t tta_max_patches = 64;
+    /// Above this many candidate points, duplicates are removed by patch ownership instead of
+    /// farthest point sampling (which is quadratic).
+    int64_t fps_merge_limit = 300000;
+};
+
+struct UpsampleResult {
+    at::Tensor points;  ///< float32 [ratio·N, 3], in the input's frame
+    int64_t n_in = 0;
+    double seconds = 0;      ///< total wall time
+    double tta_seconds = 0;  ///< of which adaptation
+    /// Self-supervised loss L(F(X↓), X) before and after adaptation (NaN without TTA).
+    double loss_before = std::numeric_limits<double>::quiet_NaN();
+    double loss_after = std::numeric_limits<double>::quiet_NaN();
+};
+
+/// Upsamples a cloud float32 [N,3] (N >= 1) to exactly ratio·N points. The model is never
+/// modified. Same inputs and seed, same output.
+UpsampleResult upsample_cloud(const Backbone& model, const at::Tensor& points,
+                              const UpsampleOptions& options);
+
+/// The non-learned baseline: each point plus the midpoints to its k nearest neighbours, then
+/// farthest point sampling to exactly ratio·N.
+at::Tensor midpoint_upsample(const at::Tensor& points, int64_t ratio, int64_t k = 0);
+
+}  // namespace pumeta

@@ -1,0 +1,132 @@
+#include "pumeta/meta/maml.h"
+
+#include <ATen/ATen.h>
+
+#include "pumeta/core/error.h"
+#include "pumeta/nn/gradients.h"
+
+namespace pumeta {
+
+MetaOptions MetaOptions::from_json(const nlohmann::json& j) {
+    MetaOptions o;
+    for (const auto& [key, value] : j.items()) {
+        if (key == "inner_steps") o.inner_steps = value;
+        else if (key == "inner_lr") o.inner_lr = value;
+        else if (key == "first_order") o.first_order = value;
+        else if (key == "learn_inner_lr") o.learn_inner_lr = value;
+        else if (key == "adapt") o.adapt = value.get<std::vector<std::string>>();
+        else throw_input_error("meta config", "unknown field '{}'", key);
+    }
+    if (o.inner_steps < 0) throw_input_error("meta config", "inner_steps must be >= 0");
+    if (o.inner_lr < 0) throw_input_error("meta config", "inner_lr must be >= 0");
+    return o;
+}
+
+nlohmann::json MetaOptions::to_json() const {
+    return {{"inner_steps", inner_steps},
+            {"inner_lr", inner_lr},
+            {"first_order", first_order},
+            {"learn_inner_lr", learn_inner_lr},
+            {"adapt", adapt}};
+}
+
+bool MetaOptions::adapts(const std::string& name) const {
+    if (adapt.empty()) return true;
+    for (const std::string& prefix : adapt)
+        if (name.rfind(prefix, 0) == 0) return true;
+    return false;
+}
+
+StepSizes make_step_sizes(const Backbone& model, const MetaOptions& options) {
+    StepSizes sizes;
+    for (const auto& [name, p] : model.parameters())
+        if (options.adapts(name))
+            sizes[name] = at::full({}, options.inner_lr, p.options()).set_requires_grad(true);
+    return sizes;
+}
+
+nlohmann::json step_sizes_to_json(const StepSizes& sizes) {
+    nlohmann::json j = nlohmann::json::object();
+    for (const auto& [name, a] : sizes) j[name] = a.item<double>();
+    return j;
+}
+
+StepSizes step_sizes_from_json(const nlohmann::json& j) {
+    StepSizes sizes;
+    for (const auto& [name, value] : j.items())
+        sizes[name] = at::full({}, value.get<double>(), at::kFloat);
+    return sizes;
+}
+
+ParamMap adapt(const Backbone& model, const ParamMap& params, const at::Tensor& x_down,
+               const at::Tensor& x, const MetaOptions& options, const StepSizes& step_sizes,
+               bool create_graph, std::vector<double>* losses) {
+    ParamMap fast = params;
+    ParamMap adapting;
+    for (const auto& [name, p] : fast)
+        if (options.adapts(name)) adapting[name] = p;
+    if (!create_graph) {
+        // Test-time adaptation: fresh leaves, so no graph reaches back to the stored model.
+        for (auto& [name, p] : fast) p = p.detach();
+        for (auto& [name, p] : adapting) p = fast[name].requires_grad_(true);
+    }
+    for (int64_t s = 0; s <= options.inner_steps; ++s) {
+        bool last = s == options.inner_steps;
+        if (last && !losses) break;
+        at::Tensor loss = model.loss(x_down, x, fast);
+        if (losses) losses->push_back(loss.item<double>());
+        if (last) break;
+        ParamMap grads = gradients(loss, adapting, create_graph && !options.first_order);
+        for (auto& [name, p] : adapting) {
+            at::Tensor g = grads.at(name);
+            auto alpha = step_sizes.find(name);
+            at::Tensor next = alpha != step_sizes.end() ? p - alpha->second * g
+                                                        : p - options.inner_lr * g;
+            if (!create_graph) next = next.detach().requires_grad_(true);
+            p = next;
+            fast[name] = next;
+        }
+    }
+    if (!create_graph)
+        for (auto& [name, p] : fast) p = p.detach();
+    return fast;
+}
+
+MetaStepResult meta_gradient(const Backbone& model, const at::Tensor& x, const at::Tensor& y,
+                             const MetaOptions& options, const StepSizes& step_sizes,
+                             uint64_t seed, int64_t step) {
+    const ParamMap& theta = model.parameters();
+    int64_t tasks = x.size(0);
+    MetaStepResult result;
+    for (const auto& [name, p] : theta) result.grads[name] = at::zeros_like(p.detach());
+    for (const auto& [name, a] : step_sizes)
+        result.step_size_grads[name] = at::zeros_like(a.detach());
+    for (int64_t n = 0; n < tasks; ++n) {
+        at::Tensor xn = x.slice(0, n, n + 1);
+        at::Tensor yn = y.slice(0, n, n + 1);
+        at::Tensor x_down = model.downsample(xn, seed + static_cast<uint64_t>(n));
+        {
+            at::NoGradGuard no_grad;
+            result.outer_loss_before += model.loss(xn, yn, theta, step).item<double>() / tasks;
+        }
+        std::vector<double> inner;
+        ParamMap fast = adapt(model, theta, x_down, xn, options, step_sizes,
+                              /*create_graph=*/true, &inner);
+        at::Tensor outer = model.loss(xn, yn, fast, step) / static_cast<double>(tasks);
+        ParamMap wrt = theta;
+        for (const auto& [name, a] : step_sizes) wrt["alpha/" + name] = a;
+        ParamMap grads = gradients(outer, wrt);
+        for (auto& [name, g] : grads) {
+            if (name.rfind("alpha/", 0) == 0)
+                result.step_size_grads[name.substr(6)] += g;
+            else
+                result.grads[name] += g;
+        }
+        result.outer_loss += outer.item<double>();
+        result.inner_loss_before += inner.front() / tasks;
+        result.inner_loss_after += inner.back() / tasks;
+    }
+    return result;
+}
+
+}  // namespace pumeta

@@ -1,0 +1,78 @@
+// Model-agnostic meta-learning for upsampling (paper Sec. III, Algorithms 1 and 2), written
+// only against the Backbone interface: no backbone-specific code here.
+//
+// Task n: a training pair (X_n, Y_n). Inner loop (adaptation): N steps of
+//   θ_n ← θ_n − α ⊙ ∇ L(F_θn(X_n↓), X_n),   X_n↓ = backbone.downsample(X_n)
+// Outer loss: mean_n L(F_θn(X_n), Y_n), differentiated w.r.t. the original θ (and α with
+// Meta-SGD). Second-order by default: the inner gradients stay in the graph.
+#pragma once
+
+#include <ATen/core/Tensor.h>
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "pumeta/models/backbone.h"
+#include "pumeta/nn/parameters.h"
+
+namespace pumeta {
+
+struct MetaOptions {
+    /// N: inner gradient steps (paper: 5).
+    int64_t inner_steps = 5;
+    /// α: inner step size (paper: 1e-5 with PU-GCN's unscaled Chamfer loss — far too small
+    /// to move the model; see docs/design.md). With plain SGD, scaling the inner loss by s is
+    /// the same as scaling α by s.
+    double inner_lr = 1e-5;
+    /// FOMAML: inner gradients are treated as constants in the outer gradient.
+    bool first_order = false;
+    /// Meta-SGD with one learnable step size per parameter tensor (per layer, as MAML++'s
+    /// learned per-layer rates), initialised to inner_lr; stored in the checkpoint's JSON.
+    bool learn_inner_lr = false;
+    /// Name prefixes of the parameters that adapt (e.g. "upsample."); empty = all.
+    std::vector<std::string> adapt;
+
+    static MetaOptions from_json(const nlohmann::json& j);
+    nlohmann::json to_json() const;
+    /// Whether parameter `name` adapts in the inner loop.
+    bool adapts(const std::string& name) const;
+};
+
+/// Per-tensor inner step sizes (Meta-SGD): 0-dim tensors named like the parameters they
+/// scale. An empty map means options.inner_lr for every adapting parameter.
+using StepSizes = ParamMap;
+
+/// Fresh Meta-SGD step sizes: inner_lr for every adapting parameter, leaves with
+/// requires_grad.
+StepSizes make_step_sizes(const Backbone& model, const MetaOptions& options);
+
+/// Step sizes as JSON {name: value} for checkpoints, and back (as fixed, non-learning tensors).
+nlohmann::json step_sizes_to_json(const StepSizes& sizes);
+StepSizes step_sizes_from_json(const nlohmann::json& j);
+
+/// The inner loop: returns θ' after options.inner_steps steps on the self-supervised loss
+/// L(F_θ(x_down), x). With create_graph, θ' is a differentiable function of `params` (and of
+/// `step_sizes`); otherwise each step is detached (test-time adaptation). When `losses` is
+/// given it receives the inner loss before each step and after the last (N + 1 values).
+ParamMap adapt(const Backbone& model, const ParamMap& params, const at::Tensor& x_down,
+               const at::Tensor& x, const MetaOptions& options, const StepSizes& step_sizes,
+               bool create_graph, std::vector<double>* losses = nullptr);
+
+struct MetaStepResult {
+    double outer_loss = 0;          ///< mean over tasks of L(F_θn(X_n), Y_n)
+    double outer_loss_before = 0;   ///< mean over tasks of L(F_θ(X_n), Y_n) (no adaptation)
+    double inner_loss_before = 0;   ///< mean self-supervised loss before the first inner step
+    double inner_loss_after = 0;    ///< ... and after the last
+    ParamMap grads;                 ///< d outer / d θ, named like the parameters
+    ParamMap step_size_grads;       ///< d outer / d α (Meta-SGD only)
+};
+
+/// One outer iteration's gradient over a batch of tasks x [B,N,3], y [B,rN,3], each task
+/// adapted on its own (Algorithm 1, lines 3-8). Task n's X↓ uses seed + n.
+MetaStepResult meta_gradient(const Backbone& model, const at::Tensor& x, const at::Tensor& y,
+                             const MetaOptions& options, const StepSizes& step_sizes,
+                             uint64_t seed, int64_t step = 0);
+
+}  // namespace pumeta

@@ -1,0 +1,258 @@
+#include "pumeta/meta/meta_trainer.h"
+
+#include <ATen/ATen.h>
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <optional>
+
+#include "pumeta/core/blas_check.h"
+#include "pumeta/core/error.h"
+#include "pumeta/core/progress.h"
+#include "pumeta/data/patch_set.h"
+#include "pumeta/models/checkpoint.h"
+#include "pumeta/nn/adam.h"
+#include "pumeta/train/training_state.h"
+#include "pumeta/train/validation.h"
+
+namespace pumeta {
+
+namespace fs = std::filesystem;
+
+MetaTrainConfig MetaTrainConfig::from_json(const nlohmann::json& j) {
+    MetaTrainConfig c;
+    for (const auto& [key, value] : j.items()) {
+        if (key == "init") c.init = value;
+        else if (key == "train_data") c.train_data = value;
+        else if (key == "val_data") c.val_data = value;
+        else if (key == "run_dir") c.run_dir = value;
+        else if (key == "meta") c.meta = MetaOptions::from_json(value);
+        else if (key == "tasks_per_batch") c.tasks_per_batch = value;
+        else if (key == "steps") c.steps = value;
+        else if (key == "outer_lr") c.outer_lr = value;
+        else if (key == "outer_lr_decay") c.outer_lr_decay = value;
+        else if (key == "outer_lr_decay_steps") c.outer_lr_decay_steps = value;
+        else if (key == "step_size_lr") c.step_size_lr = value;
+        else if (key == "sampler") c.sampler = value;
+        else if (key == "augment") c.augment = value;
+        else if (key == "log_every") c.log_every = value;
+        else if (key == "val_every") c.val_every = value;
+        else if (key == "val_tasks") c.val_tasks = value;
+        else if (key == "checkpoint_every") c.checkpoint_every = value;
+        else if (key == "seed") c.seed = value;
+        else if (key == "comment") continue;
+        else throw_input_error("meta-train config", "unknown field '{}'", key);
+    }
+    for (const char* field : {"init", "train_data", "run_dir"})
+        if (j.value(field, std::string()).empty())
+            throw_input_error("meta-train config", "'{}' is required", field);
+    if (c.tasks_per_batch < 1) throw_input_error("meta-train config", "tasks_per_batch < 1");
+    parse_input_sampler(c.sampler);
+    return c;
+}
+
+nlohmann::json MetaTrainConfig::to_json() const {
+    return {{"init", init},
+            {"train_data", train_data},
+            {"val_data", val_data},
+            {"run_dir", run_dir},
+            {"meta", meta.to_json()},
+            {"tasks_per_batch", tasks_per_batch},
+            {"steps", steps},
+            {"outer_lr", outer_lr},
+            {"outer_lr_decay", outer_lr_decay},
+            {"outer_lr_decay_steps", outer_lr_decay_steps},
+            {"step_size_lr", step_size_lr},
+            {"sampler", sampler},
+            {"augment", augment},
+            {"log_every", log_every},
+            {"val_every", val_every},
+            {"val_tasks", val_tasks},
+            {"checkpoint_every", checkpoint_every},
+            {"seed", seed}};
+}
+
+namespace {
+
+AdaptationScore score_adaptation(const Backbone& model, const ValidationSet& val,
+                                 const MetaOptions& meta, const StepSizes& step_sizes,
+                                 uint64_t seed) {
+    AdaptationScore score;
+    int64_t n = val.input.size(0);
+    std::vector<at::Tensor> before, after;
+    for (int64_t i = 0; i < n; ++i) {
+        at::Tensor x = val.input.slice(0, i, i + 1);
+        at::Tensor x_down = model.downsample(x, seed + static_cast<uint64_t>(i));
+        std::vector<double> losses;
+        ParamMap adapted = adapt(model, model.parameters(), x_down, x, meta, step_sizes,
+                                 /*create_graph=*/false, &losses);
+        score.inner_loss_before += losses.front() / n;
+        score.inner_loss_after += losses.back() / n;
+        at::NoGradGuard no_grad;
+        before.push_back(model.upsample(x));
+        after.push_back(model.upsample(x, adapted));
+    }
+    score.cd_before = mean_chamfer(at::cat(before), val.gt);
+    score.cd_after = mean_chamfer(at::cat(after), val.gt);
+    return score;
+}
+
+void append_log(const fs::path& file, const nlohmann::json& record) {
+    std::ofstream(file, std::ios::app) << record.dump() << "\n";
+}
+
+}  // namespace
+
+MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume,
+                           double stop_after_seconds) {
+    check_blas_speed();
+    fs::create_directories(config.run_dir);
+    fs::path state_file = fs::path(config.run_dir) / "state.ckpt";
+    fs::path log_file = fs::path(config.run_dir) / "log.jsonl";
+
+    std::unique_ptr<Backbone> model;
+    nlohmann::json info;
+    ParamMap optimizer_state;
+    if (resume && fs::exists(state_file)) {
+        TrainingState state = load_training_state(state_file.string());
+        model = std::move(state.model);
+        info = state.info;
+        optimizer_state = std::move(state.optimizer);
+        spdlog::info("meta-train: resuming {} at step {}", config.run_dir,
+                     info.value("step", int64_t{0}));
+    } else {
+        model = load_checkpoint(config.init).backbone;
+        fs::remove(log_file);
+    }
+    StepSizes step_sizes;
+    if (config.meta.learn_inner_lr) {
+        step_sizes = make_step_sizes(*model, config.meta);
+        if (info.contains("step_sizes"))
+            for (auto& [name, a] : step_sizes_from_json(info["step_sizes"]))
+                step_sizes.at(name) = a.clone().set_requires_grad(true);
+    }
+
+    PatchSet train_set = load_patch_set(config.train_data);
+    LoaderOptions loader_options;
+    loader_options.batch_size = config.tasks_per_batch;
+    loader_options.sampler = parse_input_sampler(config.sampler);
+    loader_options.augment = config.augment;
+    loader_options.seed = config.seed;
+    PatchLoader loader(train_set, loader_options);
+    std::optional<ValidationSet> val;
+    if (!config.val_data.empty())
+        val = make_validation_set(load_patch_set(config.val_data), config.val_tasks,
+                                  loader_options.sampler, config.seed);
+
+    Adam outer(model->parameters(), AdamOptions{config.outer_lr});
+    std::optional<Adam> step_size_optimizer;
+    if (config.meta.learn_inner_lr)
+        step_size_optimizer.emplace(step_sizes, AdamOptions{config.step_size_lr * config.meta.inner_lr});
+    int64_t step = 0;
+    double best = std::numeric_limits<double>::infinity();
+    AdaptationScore last;
+    if (!info.is_null()) {
+        ParamMap theta_state, alpha_state;
+        for (auto& [name, t] : optimizer_state)
+            (name.rfind("alpha:", 0) == 0 ? alpha_state[name.substr(6)] : theta_state[name]) = t;
+        outer.load_state(theta_state, info.at("adam"));
+        if (step_size_optimizer) step_size_optimizer->load_state(alpha_state, info.at("adam_alpha"));
+        step = info.at("step");
+        best = info.value("best_cd_after", best);
+        loader.seek(info.at("loader_position"));
+    }
+
+    auto model_extra = [&] {
+        nlohmann::json meta = config.meta.to_json();
+        return nlohmann::json{{"meta", meta},
+                              {"step_sizes", step_sizes_to_json(step_sizes)},
+                              {"meta_train_config", config.to_json()},
+                              {"sampler", config.sampler},
+                              {"step", step},
+                              {"val", {{"cd_before", last.cd_before}, {"cd_after", last.cd_after}}}};
+    };
+    auto save_state = [&] {
+        ParamMap tensors = outer.state();
+        nlohmann::json state_info = {{"step", step},
+                                     {"adam", outer.state_info()},
+                                     {"best_cd_after", best},
+                                     {"loader_position", loader.position()},
+                                     {"step_sizes", step_sizes_to_json(step_sizes)}};
+        if (step_size_optimizer) {
+            for (auto& [name, t] : step_size_optimizer->state()) tensors["alpha:" + name] = t;
+            state_info["adam_alpha"] = step_size_optimizer->state_info();
+        }
+        save_training_state(state_file.string(), *model, tensors, state_info);
+        save_checkpoint((fs::path(config.run_dir) / "model.pt").string(), *model, model_extra());
+    };
+    auto validate = [&] {
+        MetaOptions meta = config.meta;
+        last = score_adaptation(*model, *val, meta, step_sizes, config.seed + 99991);
+        bool improved = last.cd_after < best;
+        if (improved) {
+            best = last.cd_after;
+            save_checkpoint((fs::path(config.run_dir) / "best.pt").string(), *model,
+                            model_extra());
+        }
+        append_log(log_file, {{"step", step},
+                              {"val_cd_before", last.cd_before},
+                              {"val_cd_after", last.cd_after},
+                              {"val_inner_before", last.inner_loss_before},
+                              {"val_inner_after", last.inner_loss_after},
+                              {"best", improved}});
+        spdlog::info("meta-train: step {} val CD {:.4e} -> {:.4e} after adaptation (inner "
+                     "{:.4e} -> {:.4e})",
+                     step, last.cd_before, last.cd_after, last.inner_loss_before,
+                     last.inner_loss_after);
+    };
+
+    if (val && step == 0) validate();
+    auto start = std::chrono::steady_clock::now();
+    auto elapsed = [&] {
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    };
+    ProgressBar progress(config.steps, "meta-train");
+    int64_t first_step = step;
+    while (step < config.steps) {
+        Batch batch = loader.next();
+        outer.set_lr(config.outer_lr *
+                     std::pow(config.outer_lr_decay,
+                              static_cast<double>(step) / config.outer_lr_decay_steps));
+        MetaStepResult r = meta_gradient(*model, batch.input, batch.gt, config.meta, step_sizes,
+                                         config.seed * 1000003 + static_cast<uint64_t>(step) * 64,
+                                         step);
+        if (!std::isfinite(r.outer_loss))
+            throw InternalError(fmt::format("meta-train: outer loss became {} at step {}",
+                                            r.outer_loss, step));
+        outer.step(r.grads);
+        if (step_size_optimizer) step_size_optimizer->step(r.step_size_grads);
+        ++step;
+        progress.update(step, fmt::format("outer {:.3e} (unadapted {:.3e})", r.outer_loss,
+                                          r.outer_loss_before));
+        if (step % config.log_every == 0)
+            append_log(log_file, {{"step", step},
+                                  {"outer_loss", r.outer_loss},
+                                  {"outer_loss_before", r.outer_loss_before},
+                                  {"inner_loss_before", r.inner_loss_before},
+                                  {"inner_loss_after", r.inner_loss_after},
+                                  {"lr", outer.lr()},
+                                  {"seconds", elapsed()},
+                                  {"steps_per_second", (step - first_step) / elapsed()}});
+        bool stop = stop_after_seconds > 0 && elapsed() > stop_after_seconds;
+        if (val && (step % config.val_every == 0 || step == config.steps || stop)) validate();
+        if (step % config.checkpoint_every == 0 || step == config.steps || stop) save_state();
+        if (stop) {
+            spdlog::info("meta-train: time limit reached at step {}; continue with --resume",
+                         step);
+            break;
+        }
+    }
+    progress.finish();
+    return {step, last, best};
+}
+
+}  // namespace pumeta

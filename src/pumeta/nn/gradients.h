@@ -1,0 +1,16 @@
+// Gradients of a scalar with respect to a ParamMap, keeping names.
+#pragma once
+
+#include <ATen/core/Tensor.h>
+
+#include "pumeta/nn/parameters.h"
+
+namespace pumeta {
+
+/// d loss / d wrt[name] for every name of `wrt`. With create_graph the gradients are part of
+/// the graph (second-order MAML); otherwise they are detached. Parameters the loss does not
+/// depend on get zero gradients.
+ParamMap gradients(const at::Tensor& loss, const ParamMap& wrt, bool create_graph = false,
+                   bool retain_graph = false);
+
+}  // namespace pumeta

@@ -1,0 +1,185 @@
+// The dataset builder on a miniature raw-data tree made inside the test: splits, human
+// exclusion, counts, normalisation, determinism and round trips.
+#include "pumeta/data/dataset.h"
+
+#include <ATen/ATen.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <set>
+
+#include "pumeta/data/patch_set.h"
+#include "pumeta/data/shapes.h"
+#include "pumeta/geometry/io.h"
+#include "support/test_util.h"
+
+namespace pumeta {
+namespace {
+
+namespace fs = std::filesystem;
+
+/// A raw-data tree shaped like get-data.sh's: a furniture catalogue with a chair, a table and
+/// a human figure, CGAL CAD parts, a scanned statue and an aerial scan.
+void make_raw_tree(const fs::path& raw) {
+    fs::path catalogue = raw / "furniture" / "Mini";
+    std::vector<std::tuple<std::string, std::string, std::string>> entries = {
+        {"chair", "Kitchen", ""}, {"table", "Kitchen", ""}, {"lamp", "Lights", ""},
+        {"walker", "Characters", "Human, People"}};
+    fs::create_directories(catalogue);
+    std::ofstream properties(catalogue / "PluginFurnitureCatalog.properties");
+    for (size_t i = 0; i < entries.size(); ++i) {
+        auto [name, category, tags] = entries[i];
+        fs::create_directories(catalogue / "mini" / name);
+        write_mesh((catalogue / "mini" / name / (name + ".obj")).string(), generate_shape(100 + i));
+        properties << "id#" << i + 1 << "=Mini#" << name << "\nname#" << i + 1 << "=" << name
+                   << "\ncategory#" << i + 1 << "=" << category << "\ntags#" << i + 1 << "="
+                   << tags << "\nmodel#" << i + 1 << "=/mini/" << name << "/" << name
+                   << ".obj\n";
+    }
+    fs::path meshes = raw / "cgal" / "data" / "meshes";
+    fs::create_directories(meshes);
+    write_mesh((meshes / "anchor.off").string(), generate_shape(7));
+    write_mesh((meshes / "bunny00.off").string(), generate_shape(8));
+    fs::create_directories(raw / "cgal" / "data" / "points_3");
+    write_point_cloud((raw / "cgal" / "data" / "points_3" / "b9_training.ply").string(),
+                      {test::random_points(2000, 3) * 50.0 + 1000.0});
+}
+
+DatasetConfig tiny_config(const std::string& raw) {
+    DatasetConfig config;
+    config.raw_dir = raw;
+    config.ratios = {4};
+    config.input_points = 128;
+    config.patch_points = 32;
+    config.patches_per_mesh = 5;
+    config.generated_shapes = 2;
+    config.test_fraction = 0.3;
+    config.val_fraction = 0.0;
+    config.relative_noise = {1.0};
+    config.absolute_noise = {0.01};
+    return config;
+}
+
+class DatasetTest : public ::testing::Test {
+  protected:
+    static void SetUpTestSuite() {
+        dir_ = new test::TempDir();
+        make_raw_tree(dir_->path() / "raw");
+        manifest_ = new nlohmann::json(
+            make_dataset(tiny_config(dir_->file("raw")), dir_->file("out")));
+    }
+    static void TearDownTestSuite() {
+        delete manifest_;
+        delete dir_;
+    }
+    static test::TempDir* dir_;
+    static nlohmann::json* manifest_;
+};
+test::TempDir* DatasetTest::dir_ = nullptr;
+nlohmann::json* DatasetTest::manifest_ = nullptr;
+
+TEST_F(DatasetTest, NoModelInTwoSplitsAndHumansOnlyInEvaluation) {
+    const nlohmann::json& splits = (*manifest_)["splits"];
+    std::set<std::string> seen;
+    for (auto& [split, models] : splits.items()) {
+        for (const auto& m : models) {
+            EXPECT_TRUE(seen.insert(m["id"].get<std::string>()).second)
+                << m["id"] << " appears in two splits";
+            if (m["human"].get<bool>()) EXPECT_EQ(split, "test-humans") << m["id"];
+        }
+    }
+    ASSERT_TRUE(splits.contains("test-humans"));
+    EXPECT_EQ(splits["test-humans"][0]["id"], "furniture/Mini/walker");
+    EXPECT_EQ(seen.size(), 4u + 3u + 2u);  // furniture + CGAL + generated
+    for (const auto& m : splits["train"]) EXPECT_FALSE(m["human"].get<bool>());
+    for (const auto& m : splits["test-scans"]) EXPECT_EQ(m["id"], "cgal/bunny00");
+    for (const auto& m : splits["test-aerial"]) EXPECT_EQ(m["id"], "cgal/b9_training");
+}
+
+TEST_F(DatasetTest, EveryRealModelRecordsItsSha256) {
+    for (auto& [split, models] : (*manifest_)["splits"].items())
+        for (const auto& m : models)
+            if (m["source"] != "generator") EXPECT_EQ(m["sha256"].get<std::string>().size(), 64u);
+}
+
+TEST_F(DatasetTest, PatchCountsAndPointCounts) {
+    PatchSet train = load_patch_set(dir_->file("out/train-x4.tensors"));
+    int64_t meshes = static_cast<int64_t>((*manifest_)["splits"]["train"].size());
+    EXPECT_EQ(train.num_meshes(), meshes);
+    EXPECT_EQ(train.num_patches(), 5 * meshes);
+    EXPECT_EQ(train.points.size(0), 128 * 4 * meshes);
+    EXPECT_EQ(train.gt_patch(0).size(0), 32 * 4);
+    // Clouds are sampled on unit-sphere normalised meshes.
+    EXPECT_LE(train.points.norm(2, 1).max().item<float>(), 1.0f + 1e-5f);
+}
+
+TEST_F(DatasetTest, TestCasesHaveTheProtocolsCountsAndANormalisedMesh) {
+    fs::path cases = dir_->path() / "out" / "cases" / "test-scans" / "x4";
+    nlohmann::json index = nlohmann::json::parse(std::ifstream(cases / "cases.json"));
+    ASSERT_EQ(index["cases"].size(), 1u);
+    fs::path dir = cases / index["cases"][0]["name"].get<std::string>();
+    EXPECT_EQ(read_point_cloud((dir / "input.ply").string()).size(), 128);
+    EXPECT_EQ(read_point_cloud((dir / "gt.ply").string()).size(), 512);
+    EXPECT_EQ(read_point_cloud((dir / "gt_alt.ply").string()).size(), 512);
+    EXPECT_EQ(read_point_cloud((dir / "input_rel1.ply").string()).size(), 128);
+    EXPECT_EQ(read_point_cloud((dir / "input_abs0.01.ply").string()).size(), 128);
+    TriangleMesh mesh = read_mesh((dir / index["cases"][0]["mesh"].get<std::string>()).string());
+    at::Tensor used = mesh.vertices.index_select(0, std::get<0>(at::_unique(mesh.faces.flatten())));
+    EXPECT_NEAR(used.norm(2, 1).max().item<float>(), 1.0f, 1e-5f);
+
+    fs::path aerial = dir_->path() / "out" / "cases" / "test-aerial" / "x4";
+    nlohmann::json aerial_index = nlohmann::json::parse(std::ifstream(aerial / "cases.json"));
+    fs::path scan = aerial / aerial_index["cases"][0]["name"].get<std::string>();
+    EXPECT_EQ(read_point_cloud((scan / "input.ply").string()).size(), 500);
+    EXPECT_EQ(read_point_cloud((scan / "gt.ply").string()).size(), 2000);
+}
+
+TEST_F(DatasetTest, SameSeedSameDatasetAndPatchSetRoundTrips) {
+    test::TempDir again;
+    make_dataset(tiny_config(dir_->file("raw")), again.file("out"));
+    PatchSet a = load_patch_set(dir_->file("out/train-x4.tensors"));
+    PatchSet b = load_patch_set(again.file("out/train-x4.tensors"));
+    EXPECT_TRUE(a.points.equal(b.points));
+    EXPECT_TRUE(a.seeds.equal(b.seeds));
+    EXPECT_EQ(a.ids, b.ids);
+
+    save_patch_set(again.file("copy.tensors"), a);
+    PatchSet c = load_patch_set(again.file("copy.tensors"));
+    EXPECT_TRUE(c.points.equal(a.points));
+    EXPECT_TRUE(c.offsets.equal(a.offsets));
+    EXPECT_EQ(c.ratio, 4);
+    EXPECT_EQ(c.patch_points, 32);
+}
+
+TEST(PatchLoader, BatchesAreNormalisedDeterministicAndResumable) {
+    PatchSet set;
+    set.ratio = 4;
+    set.patch_points = 16;
+    at::Tensor cloud = test::random_points(400, 1);
+    set.points = cloud / cloud.norm(2, 1, true);
+    set.offsets = at::tensor({int64_t{0}, int64_t{400}});
+    set.seeds = at::stack({at::zeros({10}, at::kLong), at::arange(10, at::kLong) * 40}, 1);
+    set.ids = {"sphere"};
+    LoaderOptions options;
+    options.batch_size = 4;
+    options.augment = false;
+    options.seed = 5;
+    PatchLoader loader(set, options);
+    Batch first = loader.next();
+    EXPECT_EQ(first.input.sizes(), (std::vector<int64_t>{4, 16, 3}));
+    EXPECT_EQ(first.gt.sizes(), (std::vector<int64_t>{4, 64, 3}));
+    // GT patches normalised: centroid 0, radius 1.
+    EXPECT_LT(first.gt.mean(1).abs().max().item<float>(), 1e-5f);
+    EXPECT_NEAR(first.gt.norm(2, 2).amax(1).min().item<float>(), 1.0f, 1e-5f);
+    Batch second = loader.next();
+
+    PatchLoader resumed(set, options);
+    resumed.seek(1);
+    EXPECT_TRUE(resumed.next().input.equal(second.input));
+    PatchLoader again(set, options);
+    EXPECT_TRUE(again.next().gt.equal(first.gt));
+}
+
+}  // namespace
+}  // namespace pumeta

@@ -1,0 +1,102 @@
+#include "pumeta/inference/upsample.h"
+
+#include <ATen/ATen.h>
+#include <gtest/gtest.h>
+
+#include "pumeta/core/error.h"
+#include "pumeta/metrics/metrics.h"
+#include "support/test_util.h"
+
+namespace pumeta {
+namespace {
+
+std::unique_ptr<Backbone> small_pugcn(int64_t ratio) {
+    return make_backbone({{"backbone", "pugcn"}, {"ratio", ratio}, {"channels", 8},
+                          {"k", 8}, {"upsample_channels", 8}, {"reconstruction_channels", 8},
+                          {"patch_size", 64}, {"seed", 1}});
+}
+
+/// Points on the unit sphere (a surface, so patches are meaningful).
+at::Tensor sphere_points(int64_t n, uint64_t seed) {
+    at::Tensor p = test::random_points(n, seed);
+    return p / p.norm(2, 1, true);
+}
+
+TEST(UpsampleCloud, OutputCountIsExactlyRatioTimesInputForEveryRatio) {
+    at::Tensor input = sphere_points(300, 1);
+    for (int64_t r : {4, 8, 16}) {
+        auto model = small_pugcn(r == 16 ? 4 : r);
+        UpsampleOptions options;
+        options.ratio = r;
+        UpsampleResult result = upsample_cloud(*model, input, options);
+        EXPECT_EQ(result.points.size(0), r * 300) << "ratio " << r;
+        EXPECT_EQ(result.points.size(1), 3);
+        EXPECT_TRUE(result.points.isfinite().all().item<bool>());
+    }
+}
+
+TEST(UpsampleCloud, InputsSmallerThanAPatchWork) {
+    auto model = small_pugcn(4);
+    for (int64_t n : {12, 40}) {
+        UpsampleResult result = upsample_cloud(*model, sphere_points(n, 2), {});
+        EXPECT_EQ(result.points.size(0), 4 * n);
+    }
+}
+
+TEST(UpsampleCloud, OwnershipMergeGivesExactCountOnLargeInputs) {
+    auto model = small_pugcn(4);
+    UpsampleOptions options;
+    options.fps_merge_limit = 1000;  // force the merge used for huge clouds
+    UpsampleResult result = upsample_cloud(*model, sphere_points(2000, 3), options);
+    EXPECT_EQ(result.points.size(0), 8000);
+}
+
+TEST(UpsampleCloud, SameSeedSameOutputAndModelUnchangedByAdaptation) {
+    auto model = small_pugcn(4);
+    ParamMap before;
+    for (auto& [name, p] : model->parameters()) before[name] = p.detach().clone();
+    UpsampleOptions options;
+    options.tta_steps = 2;
+    options.meta.inner_lr = 0.01;
+    at::Tensor input = sphere_points(200, 4);
+    UpsampleResult a = upsample_cloud(*model, input, options);
+    UpsampleResult b = upsample_cloud(*model, input, options);
+    EXPECT_TRUE(a.points.equal(b.points));
+    EXPECT_TRUE(std::isfinite(a.loss_before));
+    EXPECT_TRUE(std::isfinite(a.loss_after));
+    for (auto& [name, p] : model->parameters()) EXPECT_TRUE(p.equal(before[name])) << name;
+}
+
+TEST(UpsampleCloud, PatchUnitAdaptsEachPatch) {
+    auto model = small_pugcn(4);
+    UpsampleOptions options;
+    options.tta_steps = 1;
+    options.tta_unit = "patch";
+    options.meta.inner_lr = 0.01;
+    UpsampleResult result = upsample_cloud(*model, sphere_points(150, 5), options);
+    EXPECT_EQ(result.points.size(0), 600);
+    EXPECT_TRUE(std::isfinite(result.loss_after));
+}
+
+TEST(UpsampleCloud, RatioThatIsNotAPowerOfTheModelsIsAnInputError) {
+    auto model = small_pugcn(4);
+    UpsampleOptions options;
+    options.ratio = 8;
+    EXPECT_THROW(upsample_cloud(*model, sphere_points(100, 6), options), InputError);
+}
+
+TEST(MidpointUpsample, ExactCountAndPointsBetweenNeighbours) {
+    at::Tensor input = sphere_points(500, 7);
+    at::Tensor out = midpoint_upsample(input, 4);
+    EXPECT_EQ(out.size(0), 2000);
+    // Midpoints of near neighbours on the unit sphere lie just inside it.
+    at::Tensor radius = out.norm(2, 1);
+    EXPECT_LE(radius.max().item<float>(), 1.0f + 1e-5f);
+    EXPECT_GT(radius.min().item<float>(), 0.9f);
+    // Denser than the input: closer to a dense sample of the same sphere.
+    at::Tensor dense = sphere_points(2000, 8);
+    EXPECT_LT(chamfer_distance(out, dense), chamfer_distance(input, dense));
+}
+
+}  // namespace
+}  // namespace pumeta
