@@ -64,13 +64,23 @@ void BM_FarthestPointSampling(benchmark::State& state) {
 }
 BENCHMARK(BM_FarthestPointSampling)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 
+/// Four elements at once, in parallel on two threads.
 void BM_FarthestPointSamplingBatched(benchmark::State& state) {
-    at::set_num_threads(static_cast<int>(state.range(0)));
-    at::Tensor points = random_cloud(8192, 1).unsqueeze(0);
+    at::set_num_threads(2);
+    at::Tensor points = random_cloud(4 * 8192, 1).view({4, 8192, 3});
     for (auto _ : state)
         benchmark::DoNotOptimize(pumeta::farthest_point_sampling_batched(points, 2048));
 }
-BENCHMARK(BM_FarthestPointSamplingBatched)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_FarthestPointSamplingBatched)->Unit(benchmark::kMillisecond)->UseRealTime();
+
+/// The tensor-op path that GPUs take, here on the CPU (float64 input selects it).
+void BM_FarthestPointSamplingTensorOps(benchmark::State& state) {
+    at::set_num_threads(1);
+    at::Tensor points = random_cloud(8192, 1).to(at::kDouble).unsqueeze(0);
+    for (auto _ : state)
+        benchmark::DoNotOptimize(pumeta::farthest_point_sampling_batched(points, 2048));
+}
+BENCHMARK(BM_FarthestPointSamplingTensorOps)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 void BM_SampleUniform(benchmark::State& state) {
     sphere();

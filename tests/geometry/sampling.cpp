@@ -4,6 +4,7 @@
 #include <ATen/Parallel.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
@@ -18,19 +19,21 @@ namespace pumeta {
 namespace {
 
 /// Textbook FPS: each new point maximises its distance to the nearest point chosen so far
-/// (recomputed from scratch, O(N m^2)); ties go to the smaller index.
+/// (recomputed from scratch, O(N m^2)); ties go to the smaller index. Arithmetic in the
+/// points' own precision.
+template <typename Scalar>
 std::vector<int64_t> naive_fps(const at::Tensor& points, int64_t m, int64_t start) {
-    auto p = points.accessor<float, 2>();
+    auto p = points.accessor<Scalar, 2>();
     auto sq_distance = [&](int64_t i, int64_t j) {
-        const float dx = p[i][0] - p[j][0], dy = p[i][1] - p[j][1], dz = p[i][2] - p[j][2];
+        const Scalar dx = p[i][0] - p[j][0], dy = p[i][1] - p[j][1], dz = p[i][2] - p[j][2];
         return dx * dx + dy * dy + dz * dz;
     };
     std::vector<int64_t> chosen{start};
     while (static_cast<int64_t>(chosen.size()) < m) {
         int64_t best = -1;
-        float best_distance = -1.f;
+        Scalar best_distance = -1;
         for (int64_t i = 0; i < points.size(0); ++i) {
-            float nearest = std::numeric_limits<float>::infinity();
+            Scalar nearest = std::numeric_limits<Scalar>::infinity();
             for (int64_t c : chosen) nearest = std::min(nearest, sq_distance(i, c));
             if (nearest > best_distance) best_distance = nearest, best = i;
         }
@@ -48,13 +51,13 @@ TEST(FarthestPointSampling, EqualsTheTextbookAlgorithm) {
     at::Tensor points = test::random_points(2000, 1);
     for (int64_t start : {0, 17, 1999})
         EXPECT_EQ(to_vector(farthest_point_sampling(points, 150, start)),
-                  naive_fps(points, 150, start));
+                  naive_fps<float>(points, 150, start));
 }
 
 TEST(FarthestPointSampling, ParallelPathEqualsTheTextbookAlgorithm) {
     // More points than one parallel chunk.
     at::Tensor points = test::random_points(40000, 2);
-    EXPECT_EQ(to_vector(farthest_point_sampling(points, 25, 5)), naive_fps(points, 25, 5));
+    EXPECT_EQ(to_vector(farthest_point_sampling(points, 25, 5)), naive_fps<float>(points, 25, 5));
 }
 
 TEST(FarthestPointSampling, TiesGoToTheSmallerIndex) {
@@ -76,15 +79,32 @@ TEST(FarthestPointSampling, AllPointsGivesAPermutationAndBadInputThrows) {
     EXPECT_THROW(farthest_point_sampling(at::zeros({5, 2}), 1), InputError);
 }
 
-TEST(FarthestPointSampling, BatchedEqualsEachElementOnTheCpu) {
+TEST(FarthestPointSampling, BatchedEqualsEachElement) {
     at::Tensor points = at::stack(
         {test::random_points(500, 4), test::random_points(500, 5), test::random_points(500, 6)});
     at::Tensor batched = farthest_point_sampling_batched(points, 120);
     ASSERT_EQ(batched.sizes(), (at::IntArrayRef{3, 120}));
     for (int64_t b = 0; b < 3; ++b)
         EXPECT_EQ(to_vector(batched[b]), to_vector(farthest_point_sampling(points[b], 120)));
+    EXPECT_EQ(farthest_point_sampling_batched(points, 0).sizes(), (at::IntArrayRef{3, 0}));
     EXPECT_THROW(farthest_point_sampling_batched(points, 501), InputError);
     EXPECT_THROW(farthest_point_sampling_batched(points[0], 5), InputError);
+}
+
+TEST(FarthestPointSampling, BatchedTensorPathEqualsTheTextbookAlgorithm) {
+    // float64 input takes the tensor-op path (the one GPUs use).
+    at::Tensor points =
+        at::stack({test::random_points(400, 7), test::random_points(400, 8)}).to(at::kDouble);
+    at::Tensor batched = farthest_point_sampling_batched(points, 60);
+    for (int64_t b = 0; b < 2; ++b)
+        EXPECT_EQ(to_vector(batched[b]), naive_fps<double>(points[b], 60, 0));
+}
+
+TEST(FarthestPointSampling, BatchedOnCudaEqualsTheCpu) {
+    if (!at::hasCUDA()) GTEST_SKIP() << "no CUDA device";
+    at::Tensor points = at::stack({test::random_points(700, 9), test::random_points(700, 10)});
+    EXPECT_TRUE(at::equal(farthest_point_sampling_batched(points.cuda(), 90).cpu(),
+                          farthest_point_sampling_batched(points, 90)));
 }
 
 TEST(RandomSubset, SortedDistinctInRangeAndSeeded) {

@@ -30,7 +30,7 @@ struct PointBuffer {
 using Tree = nanoflann::KDTreeSingleIndexAdaptor<nanoflann::L2_Simple_Adaptor<float, PointBuffer>,
                                                  PointBuffer, 3, uint32_t>;
 
-/// Leaf size of the tree; 10 (nanoflann's default) measured fastest for k = 16 on 100k points.
+/// nanoflann's default leaf size; 10 to 32 measured alike for k = 16 on 100k points.
 constexpr size_t kLeafSize = 10;
 
 /// nanoflann's KNNResultSet keeps whichever of two equally distant points it visits first.
@@ -169,9 +169,9 @@ KnnResult KdTree::query(const at::Tensor& queries, int64_t k) const {
 
 KnnResult knn(const at::Tensor& points, const at::Tensor& queries, int64_t k) {
     const bool batched = check_point_pair(points, queries, "knn");
-    // On the CPU the tree wins at every size measured (from 128 points on, where the brute
-    // force's tensor-op overhead alone exceeds a tree build and query), and both paths give
-    // bit-identical answers, so the choice is by device only.
+    // On the CPU, building a tree and querying it beat the brute force at every size measured
+    // (N = Q = 16 to 4096, k = 16: 4x to 15x), and both paths give bit-identical answers, so
+    // the choice is by device only.
     if (!points.device().is_cpu()) return knn_brute_force(points, queries, k);
     if (!batched) return KdTree(points).query(queries, k);
 

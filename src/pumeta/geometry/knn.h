@@ -1,6 +1,6 @@
 // k-nearest-neighbour search: a kd-tree (nanoflann) for CPU tensors and a brute-force
-// distance + topk path for GPU tensors. Both break ties by index and compute the same float32
-// distances, so they return bit-identical results.
+// distance + topk path for GPU tensors. Both break ties by the smaller index and compute the
+// same float32 distances, so they return bit-identical results.
 #pragma once
 
 #include <ATen/core/Tensor.h>
@@ -23,13 +23,13 @@ struct KnnResult {
 /// parallelises internally over queries with ATen's intra-op thread pool.
 class KdTree {
   public:
-    /// points: float32 [N,3], N >= 1. The tree keeps a contiguous copy.
+    /// points: float32 [N,3], 1 <= N < 2^32, any device. The tree keeps a contiguous CPU copy.
     explicit KdTree(const at::Tensor& points);
     ~KdTree();
     KdTree(KdTree&&) noexcept;
     KdTree& operator=(KdTree&&) noexcept;
 
-    /// queries: float32 [Q,3]; 1 <= k <= size(). Ties are broken by index.
+    /// queries: float32 [Q,3] on the CPU; 1 <= k <= size(). Ties go to the smaller index.
     KnnResult query(const at::Tensor& queries, int64_t k) const;
 
     int64_t size() const;

@@ -26,7 +26,7 @@ namespace {
 /// so that the neighbours of a sample lie in the 27 cells around its own. Cells are stored
 /// densely (a counting sort); the cell size grows where needed to keep their number O(M).
 /// Samples are renumbered by cell ("slots"): the elimination works on slots, so that the
-/// state of neighbouring samples is close in memory (3x faster than sample order, measured).
+/// state of neighbouring samples is close in memory (1.7x faster than sample order, measured).
 class CellGrid {
   public:
     CellGrid(const float* xyz, int64_t count, double radius)
@@ -71,7 +71,6 @@ class CellGrid {
         }
     }
 
-    int64_t size() const { return static_cast<int64_t>(slot_sample_.size()); }
     int64_t sample(int64_t slot) const { return slot_sample_[slot]; }
 
     /// Calls visit(other, squared_distance) for every other slot closer than the radius.
@@ -118,7 +117,8 @@ class CellGrid {
 /// A max-heap of slots ordered by weight (ties: larger sample index first). Weights only
 /// ever decrease, so an entry's key is an upper bound of its slot's weight, and a stale key is
 /// refreshed only when it reaches the top: decreases cost O(1) and the heap never touches
-/// entries whose weight will not matter (4x faster than eager sinking, measured).
+/// entries whose weight will not matter (elimination 1.6x faster than with eager sinking,
+/// measured).
 /// A popped slot's weight becomes kRemoved.
 class EliminationHeap {
   public:

@@ -17,8 +17,9 @@ namespace pumeta {
 /// points remain, indices may repeat. InputError when m > N.
 at::Tensor farthest_point_sampling(const at::Tensor& points, int64_t m, int64_t start = 0);
 
-/// Batched FPS on any device with tensor ops: points float32/float64 [B,N,3] -> int64 [B,m],
-/// starting at index 0 of each; same answer as farthest_point_sampling() per element.
+/// Batched FPS on any device: points float32/float64 [B,N,3] -> int64 [B,m], starting at
+/// index 0 of each; the same answer as farthest_point_sampling() per element. float32 CPU
+/// input runs the CPU loop (elements in parallel), anything else tensor ops.
 at::Tensor farthest_point_sampling_batched(const at::Tensor& points, int64_t m);
 
 /// m distinct indices drawn uniformly from [0, n) (sorted ascending). InputError when m > n.

@@ -18,6 +18,10 @@ namespace pumeta {
 /// No activation.
 at::Tensor conv1x1(const at::Tensor& x, const ParamMap& params, const std::string& prefix);
 
+/// conv1x1 with explicit weight [Cout,Cin] and bias [Cout] (undefined: none), for layers that
+/// use slices or combinations of stored weights.
+at::Tensor conv1x1_weights(const at::Tensor& x, const at::Tensor& weight, const at::Tensor& bias);
+
 /// Adds the parameters of an edge convolution Cin -> Cout:
 ///   `prefix.central.weight` [Cout,Cin] (no bias), `prefix.message.weight` [Cout,Cin],
 ///   `prefix.message.bias` [Cout]

@@ -33,14 +33,14 @@ at::Tensor flat_indices(const at::Tensor& idx, int64_t num_points) {
     return (idx + offsets).view(-1);
 }
 
-// sel[b,i,c] = idx[b,i,j*] with j* the first j maximising x[b, idx[b,i,j], c]: one pass
-// over each neighbour row, nothing [B,N,k,C]-sized is written.
+// flat[b,i,c] = position in x (contiguous [B,N,C]) of x[b, idx[b,i,j*], c], j* the first j
+// maximising it: one pass over each neighbour row, nothing [B,N,k,C]-sized is written.
 template <typename scalar_t>
-void argmax_neighbors_cpu(const at::Tensor& x, const at::Tensor& idx, at::Tensor& sel) {
+void argmax_neighbors_cpu(const at::Tensor& x, const at::Tensor& idx, at::Tensor& flat) {
     const int64_t num_points = x.size(1), channels = x.size(2), k = idx.size(2);
     const scalar_t* xs = x.data_ptr<scalar_t>();
     const int64_t* is = idx.data_ptr<int64_t>();
-    int64_t* out = sel.data_ptr<int64_t>();
+    int64_t* out = flat.data_ptr<int64_t>();
     at::parallel_for(0, x.size(0) * num_points, 16, [&](int64_t begin, int64_t end) {
         std::vector<scalar_t> best(static_cast<size_t>(channels));
         for (int64_t row = begin; row < end; ++row) {
@@ -52,18 +52,35 @@ void argmax_neighbors_cpu(const at::Tensor& x, const at::Tensor& idx, at::Tensor
                 if (n < 0 || n >= num_points)
                     throw_input_error("gather_max", "neighbour index {} out of range [0, {})", n,
                                       num_points);
-                const scalar_t* values = xs + (batch_base + n) * channels;
-                if (j == 0) {
-                    for (int64_t c = 0; c < channels; ++c) {
-                        best[c] = values[c];
-                        chosen[c] = n;
-                    }
-                    continue;
-                }
+                const int64_t base = (batch_base + n) * channels;
+                const scalar_t* values = xs + base;
                 for (int64_t c = 0; c < channels; ++c) {
-                    bool larger = values[c] > best[c];
+                    bool larger = j == 0 || values[c] > best[c];
                     best[c] = larger ? values[c] : best[c];
-                    chosen[c] = larger ? n : chosen[c];
+                    chosen[c] = larger ? base + c : chosen[c];
+                }
+            }
+        }
+    });
+}
+
+// flat[b,i,c] = position in y (contiguous [B,N,k,C]) of max_j y[b,i,j,c] (first on ties).
+template <typename scalar_t>
+void argmax_edges_cpu(const at::Tensor& y, at::Tensor& flat) {
+    const int64_t k = y.size(2), channels = y.size(3);
+    const scalar_t* ys = y.data_ptr<scalar_t>();
+    int64_t* out = flat.data_ptr<int64_t>();
+    at::parallel_for(0, y.size(0) * y.size(1), 16, [&](int64_t begin, int64_t end) {
+        std::vector<scalar_t> best(static_cast<size_t>(channels));
+        for (int64_t row = begin; row < end; ++row) {
+            int64_t* chosen = out + row * channels;
+            for (int64_t j = 0; j < k; ++j) {
+                const int64_t base = (row * k + j) * channels;
+                const scalar_t* values = ys + base;
+                for (int64_t c = 0; c < channels; ++c) {
+                    bool larger = j == 0 || values[c] > best[c];
+                    best[c] = larger ? values[c] : best[c];
+                    chosen[c] = larger ? base + c : chosen[c];
                 }
             }
         }
@@ -91,28 +108,59 @@ at::Tensor gather_neighbors(const at::Tensor& x, const at::Tensor& idx) {
     check_graph(x, idx, "gather_neighbors");
     const int64_t batch = x.size(0), num_points = x.size(1), channels = x.size(2);
     at::Tensor rows = x.reshape({batch * num_points, channels});
-    return rows.index_select(0, flat_indices(idx, num_points))
-        .view({batch, num_points, idx.size(2), channels});
+    // Results are not views (like at::matmul's), so callers' in-place ops need no CopySlices.
+    return at::_unsafe_view(rows.index_select(0, flat_indices(idx, num_points)),
+                            {batch, num_points, idx.size(2), channels});
 }
 
 at::Tensor gather_max(const at::Tensor& x, const at::Tensor& idx) {
     check_graph(x, idx, "gather_max");
-    at::Tensor sel;
+    at::Tensor values = x.contiguous();
+    at::Tensor flat;
     {
         at::NoGradGuard no_grad;
         if (x.device().is_cpu()) {
-            at::Tensor values = x.detach().contiguous();
             at::Tensor neighbors = idx.contiguous();
-            sel = at::empty(x.sizes(), idx.options());
+            flat = at::empty(x.sizes(), idx.options());
             AT_DISPATCH_FLOATING_TYPES(x.scalar_type(), "gather_max", [&] {
-                argmax_neighbors_cpu<scalar_t>(values, neighbors, sel);
+                argmax_neighbors_cpu<scalar_t>(values.detach(), neighbors, flat);
             });
         } else {
-            at::Tensor best = gather_neighbors(x.detach(), idx).argmax(2);  // [B,N,C]
-            sel = idx.gather(2, best);
+            const int64_t channels = x.size(2);
+            at::Tensor best = gather_neighbors(values.detach(), idx).argmax(2);  // [B,N,C]
+            at::Tensor rows = idx.gather(2, best) +
+                              at::arange(x.size(0), idx.options()).mul_(x.size(1)).view({-1, 1, 1});
+            flat = rows * channels + at::arange(channels, idx.options());
         }
     }
-    return x.gather(1, sel);
+    // Picking by flat position: index_select's backward is a 1-D index_add, cheaper than
+    // gather's scatter.
+    return at::_unsafe_view(values.view(-1).index_select(0, flat.view(-1)), x.sizes());
+}
+
+at::Tensor max_over_neighbors(const at::Tensor& y) {
+    if (!y.defined() || y.dim() != 4 || y.size(2) < 1 || !at::isFloatingType(y.scalar_type()))
+        throw_input_error("max_over_neighbors",
+                          "expected floating-point edge features [B,N,k>=1,C], found {}",
+                          shape_string(y));
+    at::Tensor values = y.contiguous();
+    at::Tensor flat;
+    {
+        at::NoGradGuard no_grad;
+        if (y.device().is_cpu()) {
+            flat = at::empty({y.size(0), y.size(1), y.size(3)}, y.options().dtype(at::kLong));
+            AT_DISPATCH_FLOATING_TYPES(y.scalar_type(), "max_over_neighbors",
+                                       [&] { argmax_edges_cpu<scalar_t>(values.detach(), flat); });
+        } else {
+            const int64_t k = y.size(2), channels = y.size(3);
+            at::Tensor best = values.argmax(2);  // [B,N,C]
+            at::Tensor rows =
+                at::arange(y.size(0) * y.size(1), best.options()).view({y.size(0), y.size(1), 1});
+            flat = ((rows * k + best) * channels) + at::arange(channels, best.options());
+        }
+    }
+    return at::_unsafe_view(values.view(-1).index_select(0, flat.view(-1)),
+                            {y.size(0), y.size(1), y.size(3)});
 }
 
 }  // namespace pumeta

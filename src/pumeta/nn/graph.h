@@ -26,4 +26,10 @@ at::Tensor gather_neighbors(const at::Tensor& x, const at::Tensor& idx);
 /// gather_neighbors(x, idx).amax(2) up to the choice among exact ties.
 at::Tensor gather_max(const at::Tensor& x, const at::Tensor& idx);
 
+/// Channel-wise maximum over the neighbour dimension of per-edge features:
+/// y [B,N,k,C] -> [B,N,C], out[b,i,c] = max_j y[b,i,j,c]. Like gather_max, the maximising edge
+/// is found without gradient tracking and its value picked by an index_select, so the
+/// backward pass writes one value per output instead of comparing all k·C.
+at::Tensor max_over_neighbors(const at::Tensor& y);
+
 }  // namespace pumeta

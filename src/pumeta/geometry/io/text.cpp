@@ -1,8 +1,10 @@
 #include "pumeta/geometry/io/text.h"
 
+#include <algorithm>
 #include <charconv>
 #include <cstdlib>
 #include <cstring>
+#include <string>
 
 namespace pumeta::io {
 
@@ -10,7 +12,7 @@ namespace {
 
 bool is_blank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\f' || c == '\v'; }
 
-// from_chars rejects the '+' that many writers put before exponents-only numbers.
+// from_chars rejects a leading '+', which some writers emit ("+1.5").
 std::string_view without_plus(std::string_view token) {
     if (token.size() > 1 && token[0] == '+' && token[1] != '-' && token[1] != '+')
         token.remove_prefix(1);
