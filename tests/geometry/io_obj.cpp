@@ -52,9 +52,12 @@ TEST(IoObj, BadIndicesAndTokensAreReportedWithLines) {
     EXPECT_TRUE(throws_input_error([&] { read_mesh(path); }, {path, "line 4", "vertex index 0"}));
     test::write_file(path, square + "f -1 -2 -4\n");
     EXPECT_TRUE(throws_input_error([&] { read_mesh(path); }, {path, "line 4", "vertex index -4"}));
-    test::write_file(path, square + "f 1 2\n");
+    test::write_file(path, square + "f 1\n");
     EXPECT_TRUE(throws_input_error([&] { read_mesh(path); },
-                                   {path, "line 4", "at least 3 vertices, found 2"}));
+                                   {path, "line 4", "at least 3 vertices, found 1"}));
+    // A two-vertex face is an edge: skipped (with a warning), the triangles around it kept.
+    test::write_file(path, square + "f 1 2\nf 1 2 3\n");
+    EXPECT_EQ(read_mesh(path).num_faces(), 1);
     test::write_file(path, square + "f 1 a/1 3\n");
     EXPECT_TRUE(throws_input_error([&] { read_mesh(path); },
                                    {path, "line 4", "expected a vertex index", "'a'"}));

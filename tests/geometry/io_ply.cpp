@@ -25,8 +25,12 @@ void expect_equal_clouds(const PointCloud& a, const PointCloud& b) {
     EXPECT_TRUE(at::equal(a.points, b.points));
     ASSERT_EQ(a.has_normals(), b.has_normals());
     ASSERT_EQ(a.has_colors(), b.has_colors());
-    if (a.has_normals()) EXPECT_TRUE(at::equal(a.normals, b.normals));
-    if (a.has_colors()) EXPECT_TRUE(at::equal(a.colors, b.colors));
+    if (a.has_normals()) {
+        EXPECT_TRUE(at::equal(a.normals, b.normals));
+    }
+    if (a.has_colors()) {
+        EXPECT_TRUE(at::equal(a.colors, b.colors));
+    }
 }
 
 TEST(IoPly, CloudRoundTripsBitExactlyInBinaryAndAscii) {

@@ -55,14 +55,14 @@ inline at::Tensor index_rows(const std::vector<int64_t>& values) {
 
 /// Fixture files written by hand for these tests.
 inline std::string io_fixture(const std::string& name) {
-    return std::string(PUMETA_SOURCE_DIR) + "/tests/data/io/" + name;
+    return std::string(PUMETA_SOURCE_DIR) + "/tests/fixtures/io/" + name;
 }
 
 /// Folder of Debian's assimp-testmodels files: installed by scripts/setup.sh, or extracted
 /// into data/raw/assimp by scripts/get-data.sh; empty when neither exists.
 inline std::string assimp_dir() {
-    for (const std::string dir : {std::string("/usr/share/assimp/models"),
-                                  std::string(PUMETA_SOURCE_DIR) + "/data/raw/assimp"})
+    for (const std::string& dir : {std::string("/usr/share/assimp/models"),
+                                   std::string(PUMETA_SOURCE_DIR) + "/data/raw/assimp"})
         if (std::filesystem::is_directory(dir)) return dir;
     return "";
 }

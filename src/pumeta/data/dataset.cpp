@@ -43,6 +43,7 @@ DatasetConfig DatasetConfig::from_json(const nlohmann::json& j) {
         else if (key == "relative_noise") c.relative_noise = value.get<std::vector<double>>();
         else if (key == "absolute_noise") c.absolute_noise = value.get<std::vector<double>>();
         else if (key == "max_models_per_split") c.max_models_per_split = value;
+        else if (key == "comment") continue;
         else throw_input_error("dataset config", "unknown field '{}'", key);
     }
     for (int64_t r : c.ratios)

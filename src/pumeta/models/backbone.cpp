@@ -16,6 +16,7 @@ void Backbone::to(const std::string& device) {
     // Moving makes new leaves: anything holding the old tensors (an optimiser) must be rebuilt.
     for (auto& [name, tensor] : params_)
         if (tensor.device() != target) tensor = tensor.detach().to(target).requires_grad_(true);
+    for (auto& [name, tensor] : buffers_) tensor = tensor.to(target);
 }
 
 }  // namespace pumeta

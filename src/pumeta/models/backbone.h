@@ -50,11 +50,22 @@ class Backbone {
     /// sampler). Builds X↓ from X for test-time adaptation.
     virtual at::Tensor downsample(const at::Tensor& dense, uint64_t seed) const = 0;
 
-    /// Moves parameters to a device ("cpu", "cuda").
+    /// Non-trainable state saved with the model, e.g. batch-norm running statistics
+    /// (empty for backbones without it). Never changed by loss() or upsample(), so
+    /// meta-learning and test-time adaptation leave it untouched.
+    ParamMap& buffers() { return buffers_; }
+    const ParamMap& buffers() const { return buffers_; }
+
+    /// Called by supervised pretraining once per step with the step's batch, before the
+    /// loss, to update buffers (running statistics). Default: nothing.
+    virtual void update_buffers(const at::Tensor& input, const ParamMap& params) {}
+
+    /// Moves parameters and buffers to a device ("cpu", "cuda").
     void to(const std::string& device);
 
   protected:
     ParamMap params_;
+    ParamMap buffers_;
 };
 
 /// Builds a backbone from its JSON config (config["backbone"] picks the kind); InputError for

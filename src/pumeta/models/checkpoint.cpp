@@ -22,6 +22,9 @@ namespace {
 constexpr char kMagic[] = "PUMETA-CKPT\n";
 constexpr size_t kMagicSize = sizeof(kMagic) - 1;
 constexpr int kFormatVersion = 1;
+// Backbone buffers (e.g. batch-norm running statistics) are stored as "buffers/<name>" next to
+// the parameters; files without such entries load into backbones without buffers as before.
+constexpr char kBufferPrefix[] = "buffers/";
 
 struct DtypeName {
     at::ScalarType type;
@@ -214,7 +217,9 @@ TensorFile load_tensors(const std::string& path) {
 
 void save_checkpoint(const std::string& path, const Backbone& backbone,
                      const nlohmann::json& extra) {
-    save_container(path, "backbone", backbone.config(), backbone.parameters(), extra);
+    ParamMap tensors = backbone.parameters();
+    for (const auto& [name, buffer] : backbone.buffers()) tensors[kBufferPrefix + name] = buffer;
+    save_container(path, "backbone", backbone.config(), tensors, extra);
 }
 
 LoadedCheckpoint load_checkpoint(const std::string& path) {
@@ -229,9 +234,13 @@ LoadedCheckpoint load_checkpoint(const std::string& path) {
     }
     const std::string kind = loaded.backbone->name();
     ParamMap& params = loaded.backbone->parameters();
-    for (const auto& [name, stored] : container.tensors)
-        if (!params.count(name))
+    ParamMap& buffers = loaded.backbone->buffers();
+    const std::string buffer_prefix = kBufferPrefix;
+    for (const auto& [name, stored] : container.tensors) {
+        bool is_buffer = name.rfind(buffer_prefix, 0) == 0;
+        if (is_buffer ? !buffers.count(name.substr(buffer_prefix.size())) : !params.count(name))
             throw_input_error(path, "tensor '{}' does not belong to backbone {}", name, kind);
+    }
     at::NoGradGuard no_grad;
     for (auto& [name, tensor] : params) {
         auto it = container.tensors.find(name);
@@ -241,6 +250,15 @@ LoadedCheckpoint load_checkpoint(const std::string& path) {
             throw_input_error(path, "tensor '{}' has shape {}, backbone {} expects {}", name,
                               shape_string(it->second), kind, shape_string(tensor));
         tensor.copy_(it->second);
+    }
+    for (auto& [name, buffer] : buffers) {
+        auto it = container.tensors.find(buffer_prefix + name);
+        if (it == container.tensors.end())
+            throw_input_error(path, "lacks buffer '{}' of backbone {}", name, kind);
+        if (!it->second.sizes().equals(buffer.sizes()))
+            throw_input_error(path, "buffer '{}' has shape {}, backbone {} expects {}", name,
+                              shape_string(it->second), kind, shape_string(buffer));
+        buffer = it->second.to(buffer.scalar_type());
     }
     loaded.extra = container.header.value("extra", nlohmann::json());
     return loaded;

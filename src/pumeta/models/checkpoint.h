@@ -8,6 +8,7 @@
 //     "tensors": {name: {"dtype", "shape", "offset", "nbytes"}}, "payload_bytes": n,
 //     "sha256": hex SHA-256 of (this header without "sha256", as compact JSON) + "\n" + payload}
 //   the payload: every tensor's raw little-endian bytes, contiguous, in name order.
+// A backbone's buffers (Backbone::buffers()) are stored as tensors named "buffers/<name>".
 // The hash covers the header too, so no flipped byte anywhere goes unnoticed.
 #pragma once
 

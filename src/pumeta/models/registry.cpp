@@ -6,6 +6,8 @@
 
 #include "pumeta/core/error.h"
 #include "pumeta/models/backbone.h"
+#include "pumeta/models/dispu.h"
+#include "pumeta/models/pudense.h"
 #include "pumeta/models/pugcn.h"
 
 namespace pumeta {
@@ -22,7 +24,11 @@ std::map<std::string, BackboneFactory>& registry() {
     return factories;
 }
 
-void register_builtin_backbones() { register_backbone("pugcn", make_pugcn); }
+void register_builtin_backbones() {
+    register_backbone("pugcn", make_pugcn);
+    register_backbone("dispu", make_dispu);
+    register_backbone("pudense", make_pudense);
+}
 
 void ensure_builtins_registered() {
     static std::once_flag once;

@@ -3,7 +3,12 @@
 #include <ATen/ATen.h>
 #include <ATen/Parallel.h>
 
+#include <algorithm>
+#include <cstring>
 #include <limits>
+#include <type_traits>
+#include <utility>
+#include <vector>
 
 #include "pumeta/core/error.h"
 #include "pumeta/core/tensor_checks.h"
@@ -33,55 +38,79 @@ at::Tensor flat_indices(const at::Tensor& idx, int64_t num_points) {
     return (idx + offsets).view(-1);
 }
 
-// flat[b,i,c] = position in x (contiguous [B,N,C]) of x[b, idx[b,i,j*], c], j* the first j
-// maximising it: one pass over each neighbour row, nothing [B,N,k,C]-sized is written.
-template <typename scalar_t>
-void argmax_neighbors_cpu(const at::Tensor& x, const at::Tensor& idx, at::Tensor& flat) {
-    const int64_t num_points = x.size(1), channels = x.size(2), k = idx.size(2);
-    const scalar_t* xs = x.data_ptr<scalar_t>();
-    const int64_t* is = idx.data_ptr<int64_t>();
-    int64_t* out = flat.data_ptr<int64_t>();
-    at::parallel_for(0, x.size(0) * num_points, 16, [&](int64_t begin, int64_t end) {
+// Running channel-wise maximum over the k candidate rows of each output row, keeping the
+// winning candidate's slot j (first on ties). `candidate(row, j)` points at C values.
+// Written so that the inner loop vectorises: same-width float/int32 selects, no branches.
+template <typename scalar_t, typename Candidate>
+void argmax_slots(int64_t rows, int64_t k, int64_t channels, Candidate candidate, int32_t* slots) {
+    at::parallel_for(0, rows, 16, [&](int64_t begin, int64_t end) {
         std::vector<scalar_t> best(static_cast<size_t>(channels));
         for (int64_t row = begin; row < end; ++row) {
-            const int64_t batch_base = (row / num_points) * num_points;
-            const int64_t* neighbors = is + row * k;
-            int64_t* chosen = out + row * channels;
-            for (int64_t j = 0; j < k; ++j) {
-                int64_t n = neighbors[j];
-                if (n < 0 || n >= num_points)
-                    throw_input_error("gather_max", "neighbour index {} out of range [0, {})", n,
-                                      num_points);
-                const int64_t base = (batch_base + n) * channels;
-                const scalar_t* values = xs + base;
+            int32_t* slot = slots + row * channels;
+            const scalar_t* first = candidate(row, 0);
+            for (int64_t c = 0; c < channels; ++c) {
+                best[c] = first[c];
+                slot[c] = 0;
+            }
+            for (int32_t j = 1; j < k; ++j) {
+                const scalar_t* __restrict values = candidate(row, j);
+                scalar_t* __restrict running = best.data();
+                int32_t* __restrict winner = slot;
                 for (int64_t c = 0; c < channels; ++c) {
-                    bool larger = j == 0 || values[c] > best[c];
-                    best[c] = larger ? values[c] : best[c];
-                    chosen[c] = larger ? base + c : chosen[c];
+                    scalar_t value = values[c], current = running[c];
+                    using mask_t = std::conditional_t<sizeof(scalar_t) == 4, int32_t, int64_t>;
+                    mask_t mask = -mask_t(value > current);  // all ones where larger
+                    running[c] = current < value ? value : current;
+                    winner[c] = int32_t((mask_t(j) & mask) | (mask_t(winner[c]) & ~mask));
                 }
             }
         }
     });
 }
 
-// flat[b,i,c] = position in y (contiguous [B,N,k,C]) of max_j y[b,i,j,c] (first on ties).
+void check_indices_in_range(const at::Tensor& idx, int64_t num_points, const char* what) {
+    if (idx.numel() == 0) return;
+    auto [lo, hi] = at::aminmax(idx);
+    if (lo.item<int64_t>() < 0 || hi.item<int64_t>() >= num_points)
+        throw_input_error(what, "neighbour indices [{}, {}] out of range [0, {})",
+                          lo.item<int64_t>(), hi.item<int64_t>(), num_points);
+}
+
+// Float -> unsigned integer with the same order (negative floats flipped), so that a score
+// and its index pack into one integer key.
+inline uint32_t ordered_bits(float value) {
+    uint32_t bits;
+    std::memcpy(&bits, &value, sizeof bits);
+    return (bits & 0x80000000u) ? ~bits : (bits | 0x80000000u);
+}
+
+// The k smallest scores of each row of [R,N] (ties by index), sorted: a selection and a sort
+// of k per row, several times faster on the CPU than a general top-k for k << N.
 template <typename scalar_t>
-void argmax_edges_cpu(const at::Tensor& y, at::Tensor& flat) {
-    const int64_t k = y.size(2), channels = y.size(3);
-    const scalar_t* ys = y.data_ptr<scalar_t>();
-    int64_t* out = flat.data_ptr<int64_t>();
-    at::parallel_for(0, y.size(0) * y.size(1), 16, [&](int64_t begin, int64_t end) {
-        std::vector<scalar_t> best(static_cast<size_t>(channels));
+void smallest_k_cpu(const at::Tensor& scores, int64_t k, at::Tensor& out) {
+    const int64_t n = scores.size(-1);
+    const scalar_t* s = scores.data_ptr<scalar_t>();
+    int64_t* result = out.data_ptr<int64_t>();
+    // float32 (training): (score bits, index) packed in one uint64, compared in one instruction.
+    using Key =
+        std::conditional_t<std::is_same_v<scalar_t, float>, uint64_t, std::pair<scalar_t, int64_t>>;
+    at::parallel_for(0, scores.numel() / n, 16, [&](int64_t begin, int64_t end) {
+        std::vector<Key> keys(static_cast<size_t>(n));
         for (int64_t row = begin; row < end; ++row) {
-            int64_t* chosen = out + row * channels;
+            const scalar_t* values = s + row * n;
+            for (int64_t j = 0; j < n; ++j) {
+                if constexpr (std::is_same_v<scalar_t, float>)
+                    keys[j] = (uint64_t(ordered_bits(values[j])) << 32) | uint64_t(j);
+                else
+                    keys[j] = {values[j], j};
+            }
+            std::nth_element(keys.begin(), keys.begin() + (k - 1), keys.end());
+            std::sort(keys.begin(), keys.begin() + k);
             for (int64_t j = 0; j < k; ++j) {
-                const int64_t base = (row * k + j) * channels;
-                const scalar_t* values = ys + base;
-                for (int64_t c = 0; c < channels; ++c) {
-                    bool larger = j == 0 || values[c] > best[c];
-                    best[c] = larger ? values[c] : best[c];
-                    chosen[c] = larger ? base + c : chosen[c];
-                }
+                if constexpr (std::is_same_v<scalar_t, float>)
+                    result[row * k + j] = int64_t(keys[j] & 0xffffffffu);
+                else
+                    result[row * k + j] = keys[j].second;
             }
         }
     });
@@ -101,7 +130,12 @@ at::Tensor knn_graph(const at::Tensor& features, int64_t k) {
     at::Tensor sq_norms = x.pow(2).sum(-1).unsqueeze(1).expand({-1, num_points, -1});
     at::Tensor scores = at::baddbmm(sq_norms, x, x.transpose(1, 2), /*beta=*/1, /*alpha=*/-2);
     scores.diagonal(0, 1, 2).fill_(std::numeric_limits<double>::infinity());
-    return std::get<1>(scores.topk(k, -1, /*largest=*/false, /*sorted=*/true));
+    if (!scores.device().is_cpu())
+        return std::get<1>(scores.topk(k, -1, /*largest=*/false, /*sorted=*/true));
+    at::Tensor out = at::empty({x.size(0), num_points, k}, x.options().dtype(at::kLong));
+    AT_DISPATCH_FLOATING_TYPES(scores.scalar_type(), "knn_graph",
+                               [&] { smallest_k_cpu<scalar_t>(scores, k, out); });
+    return out;
 }
 
 at::Tensor gather_neighbors(const at::Tensor& x, const at::Tensor& idx) {
@@ -115,23 +149,33 @@ at::Tensor gather_neighbors(const at::Tensor& x, const at::Tensor& idx) {
 
 at::Tensor gather_max(const at::Tensor& x, const at::Tensor& idx) {
     check_graph(x, idx, "gather_max");
+    const int64_t batch = x.size(0), num_points = x.size(1), channels = x.size(2);
+    const int64_t k = idx.size(2);
     at::Tensor values = x.contiguous();
-    at::Tensor flat;
+    at::Tensor flat;  // int64 [B,N,C]: position in `values` of each maximum
     {
         at::NoGradGuard no_grad;
+        at::Tensor neighbors = idx.contiguous();
+        at::Tensor slot;  // [B,N,C]: which of the k neighbours wins
         if (x.device().is_cpu()) {
-            at::Tensor neighbors = idx.contiguous();
-            flat = at::empty(x.sizes(), idx.options());
+            check_indices_in_range(neighbors, num_points, "gather_max");
+            slot = at::empty(x.sizes(), idx.options().dtype(at::kInt));
             AT_DISPATCH_FLOATING_TYPES(x.scalar_type(), "gather_max", [&] {
-                argmax_neighbors_cpu<scalar_t>(values.detach(), neighbors, flat);
+                const scalar_t* xs = values.data_ptr<scalar_t>();
+                const int64_t* is = neighbors.data_ptr<int64_t>();
+                auto candidate = [&](int64_t row, int64_t j) {
+                    return xs + ((row / num_points) * num_points + is[row * k + j]) * channels;
+                };
+                argmax_slots<scalar_t>(batch * num_points, k, channels, candidate,
+                                       slot.data_ptr<int32_t>());
             });
+            slot = slot.to(at::kLong);
         } else {
-            const int64_t channels = x.size(2);
-            at::Tensor best = gather_neighbors(values.detach(), idx).argmax(2);  // [B,N,C]
-            at::Tensor rows = idx.gather(2, best) +
-                              at::arange(x.size(0), idx.options()).mul_(x.size(1)).view({-1, 1, 1});
-            flat = rows * channels + at::arange(channels, idx.options());
+            slot = gather_neighbors(values.detach(), neighbors).argmax(2);
         }
+        at::Tensor rows = neighbors.gather(2, slot) +
+                          at::arange(batch, idx.options()).mul_(num_points).view({-1, 1, 1});
+        flat = rows * channels + at::arange(channels, idx.options());
     }
     // Picking by flat position: index_select's backward is a 1-D index_add, cheaper than
     // gather's scatter.
@@ -143,24 +187,30 @@ at::Tensor max_over_neighbors(const at::Tensor& y) {
         throw_input_error("max_over_neighbors",
                           "expected floating-point edge features [B,N,k>=1,C], found {}",
                           shape_string(y));
+    const int64_t rows = y.size(0) * y.size(1), k = y.size(2), channels = y.size(3);
     at::Tensor values = y.contiguous();
-    at::Tensor flat;
+    at::Tensor flat;  // int64 [B,N,C]: position in `values` of each maximum
     {
         at::NoGradGuard no_grad;
+        at::Tensor slot;  // [B,N,C]: which of the k edges wins
         if (y.device().is_cpu()) {
-            flat = at::empty({y.size(0), y.size(1), y.size(3)}, y.options().dtype(at::kLong));
-            AT_DISPATCH_FLOATING_TYPES(y.scalar_type(), "max_over_neighbors",
-                                       [&] { argmax_edges_cpu<scalar_t>(values.detach(), flat); });
+            slot = at::empty({y.size(0), y.size(1), channels}, y.options().dtype(at::kInt));
+            AT_DISPATCH_FLOATING_TYPES(y.scalar_type(), "max_over_neighbors", [&] {
+                const scalar_t* ys = values.data_ptr<scalar_t>();
+                auto candidate = [&](int64_t row, int64_t j) {
+                    return ys + (row * k + j) * channels;
+                };
+                argmax_slots<scalar_t>(rows, k, channels, candidate, slot.data_ptr<int32_t>());
+            });
+            slot = slot.to(at::kLong);
         } else {
-            const int64_t k = y.size(2), channels = y.size(3);
-            at::Tensor best = values.argmax(2);  // [B,N,C]
-            at::Tensor rows =
-                at::arange(y.size(0) * y.size(1), best.options()).view({y.size(0), y.size(1), 1});
-            flat = ((rows * k + best) * channels) + at::arange(channels, best.options());
+            slot = values.argmax(2);
         }
+        at::Tensor row_index = at::arange(rows, slot.options()).view({y.size(0), y.size(1), 1});
+        flat = (row_index * k + slot) * channels + at::arange(channels, slot.options());
     }
     return at::_unsafe_view(values.view(-1).index_select(0, flat.view(-1)),
-                            {y.size(0), y.size(1), y.size(3)});
+                            {y.size(0), y.size(1), channels});
 }
 
 }  // namespace pumeta

@@ -157,6 +157,7 @@ TrainResult train(const TrainConfig& config, bool resume, double stop_after_seco
     while (step < config.steps) {
         Batch batch = loader.next();
         adam.set_lr(learning_rate(config, step));
+        model->update_buffers(batch.input, model->parameters());
         at::Tensor loss = model->loss(batch.input, batch.gt, model->parameters(), step);
         adam.step(gradients(loss, model->parameters()));
         ++step;

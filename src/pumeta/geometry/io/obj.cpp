@@ -3,6 +3,7 @@
 // Other statements (vn, vt, g, o, s, usemtl, mtllib, l, p, ...) are ignored.
 #include <ATen/ATen.h>
 #include <fmt/format.h>
+#include <spdlog/spdlog.h>
 
 #include <iterator>
 
@@ -20,6 +21,7 @@ Geometry read_obj(const std::string& path, std::string_view data) {
     std::vector<int64_t> triangles;
     std::vector<int64_t> polygon;
     bool has_faces = false;
+    int64_t skipped_edges = 0;
     std::string_view line;
     while (lines.next_content(line, '#')) {
         split_tokens(line, tokens);
@@ -31,7 +33,7 @@ Geometry read_obj(const std::string& path, std::string_view data) {
             for (int axis = 1; axis <= 3; ++axis)
                 points.push_back(parse_or_throw<float>(tokens[axis], path, number, "a coordinate"));
         } else if (tokens[0] == "f") {
-            if (tokens.size() < 4)
+            if (tokens.size() < 3)
                 throw_input_error(path, "line {}: a face needs at least 3 vertices, found {}",
                                   number, tokens.size() - 1);
             // Indices refer to the vertices defined so far; negative ones count back from the
@@ -50,11 +52,19 @@ Geometry read_obj(const std::string& path, std::string_view data) {
                                       number, index, defined);
                 polygon.push_back(resolved);
             }
+            // Two-vertex "faces" (edges written as faces by some exporters) hold no surface:
+            // skipped, like other readers do, and reported once below.
+            if (polygon.size() < 3) {
+                ++skipped_edges;
+                continue;
+            }
             for (size_t k = 1; k + 1 < polygon.size(); ++k)
                 triangles.insert(triangles.end(), {polygon[0], polygon[k], polygon[k + 1]});
             has_faces = true;
         }
     }
+    if (skipped_edges > 0)
+        spdlog::warn("{}: skipped {} two-vertex face(s)", path, skipped_edges);
     Geometry geometry;
     geometry.cloud.points = rows_tensor(points);
     if (has_faces) {

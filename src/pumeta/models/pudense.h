@@ -1,0 +1,123 @@
+// PU-Dense (Akhtar et al., IEEE TIP 2022): a sparse voxel U-Net of Inception and Pyramid
+// blocks whose last generative transposed convolution proposes new voxels; an occupancy logit
+// per proposed voxel, trained with BCE against the ground truth's voxels, and the top rN
+// voxels as the output. Built on the twice-differentiable engine of nn/sparse, so MAML can
+// adapt it. 13,172,441 parameters at the paper width with last kernel 5.
+#pragma once
+
+#include <ATen/core/Tensor.h>
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <deque>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "pumeta/models/backbone.h"
+#include "pumeta/nn/sparse/sparse_batch_norm.h"
+#include "pumeta/nn/sparse/sparse_tensor.h"
+
+namespace pumeta {
+
+/// PU-Dense's configuration: the JSON fields of {"backbone": "pudense", ...}. Every field is
+/// optional; unknown fields are rejected.
+struct PuDenseOptions {
+    /// Upsampling ratio r >= 1 (the output keeps the rN most likely voxels).
+    int64_t ratio = 8;
+    /// "paper" (channels 32, 32, 64, 128, 256) or "compact" (16, 16, 32, 64, 64; 1.6 M
+    /// parameters, for 2 CPU cores). Sets `channels` unless the config gives them.
+    std::string preset = "paper";
+    /// Channels of the five levels (tensor strides 1, 2, 4, 8, 16): multiples of 4 with
+    /// channels[0] == channels[1] (the decoder adds the stride-1 encoder features).
+    std::vector<int64_t> channels = {32, 32, 64, 128, 256};
+    /// Odd kernel size >= 3 of the generative transposed convolution: new voxels lie within
+    /// (K-1)/2 voxels of the stride-2 sites.
+    int64_t last_kernel_size = 5;
+    /// Voxels per unit length of the input frame (normalised patches have radius about 1):
+    /// voxel edge h = 1 / resolution. Choose it so that ground-truth points have about one
+    /// voxel each; 24 suits 2,048-point patches.
+    double resolution = 24.0;
+    /// Points per input patch of the patch pipeline.
+    int64_t patch_size = 256;
+    /// Training-pair / X↓ downsampler (PU-Dense: a uniform random subset).
+    std::string downsampler = "random";
+    /// Factor on the BCE loss (meta-learning rates depend on the loss scale).
+    double loss_scale = 1.0;
+    /// Weight of a new batch in the running statistics (PyTorch's BatchNorm momentum).
+    double bn_momentum = 0.1;
+    /// Normalise with each input's own statistics in upsample() too (as meta-training's outer
+    /// loss does) instead of the running statistics.
+    bool batch_stats_at_inference = false;
+    /// Seed of the parameter initialisation.
+    uint64_t seed = 0;
+
+    /// InputError "pudense config: ..." for unknown fields, wrong types or invalid values.
+    static PuDenseOptions from_json(const nlohmann::json& config);
+    /// Every field, with "backbone": "pudense".
+    nlohmann::json to_json() const;
+};
+
+/// The network's output: one occupancy logit per generated stride-1 site.
+struct Occupancy {
+    CoordinateSetPtr sites;  ///< the generated voxels, batch column = batch element
+    at::Tensor logits;       ///< [G]
+};
+
+class PuDense : public Backbone {
+  public:
+    explicit PuDense(const PuDenseOptions& options);
+
+    std::string name() const override { return "pudense"; }
+    nlohmann::json config() const override { return options_.to_json(); }
+    int64_t ratio() const override { return options_.ratio; }
+    int64_t patch_size() const override { return options_.patch_size; }
+    const PuDenseOptions& options() const { return options_; }
+    /// Voxel edge length h in the input frame.
+    double voxel_size() const { return 1.0 / options_.resolution; }
+
+    /// The network on occupied voxels (stride-1 sites, feature 1 each).
+    Occupancy occupancy(const CoordinateSetPtr& voxels, const ParamMap& params,
+                        const BatchNormContext& norm) const;
+
+    /// x [B,N,3] -> [B,rN,3]: the centres of each element's rN most likely voxels (running
+    /// statistics unless batch_stats_at_inference). When fewer voxels are generated than rN,
+    /// the ranked ones repeat cyclically, so the count is always exact.
+    at::Tensor upsample(const at::Tensor& x, const ParamMap& params) const override;
+    using Backbone::upsample;
+
+    /// loss_scale · BCE-with-logits between the occupancy of every generated voxel and its
+    /// membership in target's voxels, averaged over the generated voxels of the batch; batch
+    /// statistics; `step` unused. Twice differentiable in params.
+    at::Tensor loss(const at::Tensor& input, const at::Tensor& target, const ParamMap& params,
+                    int64_t step = 0) const override;
+
+    /// downsample_points(dense, M / r, options().downsampler, seed).
+    at::Tensor downsample(const at::Tensor& dense, uint64_t seed) const override;
+
+    /// Moves the running statistics of every batch norm towards this batch's.
+    void update_buffers(const at::Tensor& input, const ParamMap& params) override;
+
+    /// The occupied voxels of x [B,N,3]. The last few results are cached (keyed by content), so
+    /// the kernel maps built for an input are reused by repeated calls on it: the inner loop,
+    /// update_buffers then loss.
+    CoordinateSetPtr voxels(const at::Tensor& x) const;
+
+  private:
+    void check_input(const at::Tensor& x, const ParamMap& params, const char* what) const;
+
+    PuDenseOptions options_;
+
+    struct CachedVoxels {
+        at::Tensor points;
+        CoordinateSetPtr voxels;
+    };
+    mutable std::mutex cache_mutex_;
+    mutable std::deque<CachedVoxels> cache_;
+};
+
+/// The registry's factory: PuDense(PuDenseOptions::from_json(config)).
+std::unique_ptr<Backbone> make_pudense(const nlohmann::json& config);
+
+}  // namespace pumeta

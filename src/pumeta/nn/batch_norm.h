@@ -1,0 +1,39 @@
+// Batch normalisation that runs from explicit parameters and buffers (channels-last), so that
+// MAML's fast weights can replace gamma and beta. Statistics are taken per channel over every
+// leading dimension, as TensorFlow's batch_norm on NHWC maps.
+#pragma once
+
+#include <ATen/core/Tensor.h>
+
+#include <cstdint>
+#include <string>
+
+#include "pumeta/nn/parameters.h"
+
+namespace pumeta {
+
+/// Adds the trainable `prefix.gamma` (ones) and `prefix.beta` (zeros), float32 [channels], to
+/// `params`, and the running statistics `prefix.running_mean` (zeros) and `prefix.running_var`
+/// (ones), float32 [channels], to `buffers` (TensorFlow's initial values).
+void add_batch_norm(ParamMap& params, ParamMap& buffers, const std::string& prefix,
+                    int64_t channels);
+
+/// Train mode: (x - mean) / sqrt(var + eps) · gamma + beta with the mean and biased variance
+/// of x itself, x [..., C] -> same shape. Only plain ATen ops, so differentiable twice (through
+/// the statistics too). Buffers are neither read nor written.
+at::Tensor batch_norm_batch_stats(const at::Tensor& x, const ParamMap& params,
+                                  const std::string& prefix, double eps);
+
+/// Inference mode: the same with `prefix.running_mean` and `prefix.running_var` from `buffers`
+/// (converted to x's dtype and device).
+at::Tensor batch_norm_running_stats(const at::Tensor& x, const ParamMap& params,
+                                    const ParamMap& buffers, const std::string& prefix,
+                                    double eps);
+
+/// running ← (1 − momentum) · running + momentum · batch, for the mean and the unbiased
+/// variance of x [..., C] (as TensorFlow's fused batch norm and PyTorch do). No gradient.
+/// InputError unless 0 <= momentum <= 1 and x has at least two rows.
+void update_running_stats(const at::Tensor& x, ParamMap& buffers, const std::string& prefix,
+                          double momentum);
+
+}  // namespace pumeta

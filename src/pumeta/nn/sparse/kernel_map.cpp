@@ -1,0 +1,140 @@
+#include "pumeta/nn/sparse/kernel_map.h"
+
+#include <ATen/ATen.h>
+#include <ATen/Parallel.h>
+
+#include "pumeta/core/error.h"
+#include "pumeta/nn/sparse/coordinate_set.h"
+
+namespace pumeta {
+
+namespace {
+
+at::Tensor to_index_tensor(const std::vector<int64_t>& values) {
+    at::Tensor t = at::empty({int64_t(values.size())}, at::kLong);
+    std::copy(values.begin(), values.end(), t.data_ptr<int64_t>());
+    return t;
+}
+
+/// Appends one offset's pairs: output row o (coordinates `out_coords`) reads the input site
+/// at its coordinates + shift, where one exists.
+void append_offset(KernelMap& map, const CoordinateSet& input, const at::Tensor& out_coords,
+                   const std::array<int64_t, 3>& shift) {
+    const int64_t count = out_coords.size(0);
+    const int32_t* c = out_coords.data_ptr<int32_t>();
+    std::vector<int64_t> found(count);
+    at::parallel_for(0, count, 2048, [&](int64_t begin, int64_t end) {
+        for (int64_t o = begin; o < end; ++o) {
+            const int32_t* row = c + 4 * o;
+            found[o] = input.find(row[0], row[1] + shift[0], row[2] + shift[1], row[3] + shift[2]);
+        }
+    });
+    std::vector<int64_t> in_rows, out_rows;
+    for (int64_t o = 0; o < count; ++o) {
+        if (found[o] < 0) continue;
+        in_rows.push_back(found[o]);
+        out_rows.push_back(o);
+    }
+    map.in.push_back(to_index_tensor(in_rows));
+    map.out.push_back(to_index_tensor(out_rows));
+}
+
+}  // namespace
+
+void check_kernel_size(int64_t kernel_size, const char* context) {
+    if (kernel_size < 1 || kernel_size % 2 == 0)
+        throw_input_error(context, "kernel size must be odd and >= 1, found {}", kernel_size);
+}
+
+std::vector<std::array<int64_t, 3>> kernel_offsets(int64_t kernel_size) {
+    check_kernel_size(kernel_size, "kernel offsets");
+    const int64_t half = (kernel_size - 1) / 2;
+    std::vector<std::array<int64_t, 3>> offsets;
+    for (int64_t a = 0; a < kernel_size; ++a)
+        for (int64_t b = 0; b < kernel_size; ++b)
+            for (int64_t c = 0; c < kernel_size; ++c)
+                offsets.push_back({a - half, b - half, c - half});
+    return offsets;
+}
+
+int64_t KernelMap::pairs() const {
+    int64_t total = 0;
+    for (const at::Tensor& t : in) total += t.numel();
+    return total;
+}
+
+KernelMap KernelMap::transposed() const {
+    KernelMap t;
+    t.in = out;
+    t.out = in;
+    t.identity_offset = identity_offset;
+    t.input_size = output_size;
+    t.output_size = input_size;
+    return t;
+}
+
+KernelMap build_conv_map(const CoordinateSet& set, int64_t kernel_size, int64_t dilation) {
+    KernelMap map;
+    map.input_size = map.output_size = set.size();
+    const int64_t step = dilation * set.stride();
+    for (const auto& offset : kernel_offsets(kernel_size))
+        append_offset(map, set, set.coords(),
+                      {offset[0] * step, offset[1] * step, offset[2] * step});
+    map.identity_offset = map.kernel_volume() / 2;
+    return map;
+}
+
+KernelMap build_down_map(const CoordinateSet& fine, const CoordinateSet& coarse,
+                         int64_t kernel_size) {
+    KernelMap map;
+    map.input_size = fine.size();
+    map.output_size = coarse.size();
+    const int64_t step = fine.stride();
+    for (const auto& offset : kernel_offsets(kernel_size))
+        append_offset(map, fine, coarse.coords(),
+                      {offset[0] * step, offset[1] * step, offset[2] * step});
+    return map;
+}
+
+GeneratedCoordinates generate_coordinates(const CoordinateSet& coarse, int64_t kernel_size,
+                                          int64_t factor) {
+    const auto offsets = kernel_offsets(kernel_size);
+    const int64_t volume = int64_t(offsets.size());
+    const int64_t step = coarse.stride() / factor;
+    const int64_t count = coarse.size();
+    const int32_t* c = coarse.coords().data_ptr<int32_t>();
+
+    CoordinateHash hash(count * volume / 4);
+    std::vector<int32_t> sites;
+    std::vector<std::vector<int64_t>> out_rows(volume, std::vector<int64_t>(count));
+    for (int64_t i = 0; i < count; ++i) {
+        const int32_t* row = c + 4 * i;
+        for (int64_t k = 0; k < volume; ++k) {
+            int64_t x = row[1] + offsets[k][0] * step, y = row[2] + offsets[k][1] * step,
+                    z = row[3] + offsets[k][2] * step;
+            if (!packable(row[0], x, y, z))
+                throw_input_error("sparse coordinates",
+                                  "generated site ({}, {}, {}) leaves the coordinate range", x, y,
+                                  z);
+            int64_t next = int64_t(sites.size() / 4);
+            int64_t stored = hash.insert(pack_coordinate(row[0], x, y, z), next);
+            if (stored == next)
+                sites.insert(sites.end(), {row[0], int32_t(x), int32_t(y), int32_t(z)});
+            out_rows[k][i] = stored;
+        }
+    }
+    GeneratedCoordinates result{at::empty({int64_t(sites.size() / 4), 4}, at::kInt),
+                                std::move(hash),
+                                {}};
+    std::copy(sites.begin(), sites.end(), result.coords.data_ptr<int32_t>());
+    at::Tensor all_coarse = at::arange(count, at::kLong);
+    for (int64_t k = 0; k < volume; ++k) {
+        result.map.in.push_back(all_coarse);
+        result.map.out.push_back(to_index_tensor(out_rows[k]));
+    }
+    result.map.input_size = count;
+    result.map.output_size = result.coords.size(0);
+    return result;
+}
+
+}  // namespace pumeta

@@ -1,0 +1,133 @@
+#include "pumeta/nn/sparse/sparse_conv.h"
+
+#include <ATen/ATen.h>
+
+#include <cmath>
+
+#include "pumeta/core/error.h"
+#include "pumeta/core/tensor_checks.h"
+#include "pumeta/nn/init.h"
+
+namespace pumeta {
+
+namespace {
+
+constexpr const char* kContext = "sparse convolution";
+
+at::Tensor uniform_tensor(at::IntArrayRef shape, double limit, std::mt19937_64& rng) {
+    at::Tensor t = at::empty(shape, at::kFloat);
+    float* data = t.data_ptr<float>();
+    for (int64_t i = 0; i < t.numel(); ++i) data[i] = float((2.0 * uniform01(rng) - 1.0) * limit);
+    return t.requires_grad_(true);
+}
+
+void insert_new(ParamMap& params, const std::string& name, at::Tensor tensor) {
+    if (!params.emplace(name, std::move(tensor)).second)
+        throw InternalError("parameter '" + name + "' initialised twice");
+}
+
+at::Tensor optional_param(const ParamMap& params, const std::string& name) {
+    auto it = params.find(name);
+    return it == params.end() ? at::Tensor() : it->second;
+}
+
+const at::Tensor& checked_weight(const ParamMap& params, const std::string& prefix,
+                                 int64_t kernel_size, int64_t in_channels) {
+    const at::Tensor& w = param(params, prefix + ".weight");
+    const int64_t volume = kernel_size * kernel_size * kernel_size;
+    if (w.dim() != 3 || w.size(0) != volume || w.size(1) != in_channels)
+        throw_input_error(kContext, "'{}.weight' is {}, expected [{}, {}, Cout]", prefix,
+                          shape_string(w), volume, in_channels);
+    return w;
+}
+
+/// An index tensor on the device of the features it indexes (kernel maps live on the CPU).
+at::Tensor on_device(const at::Tensor& index, const at::Tensor& like) {
+    return index.device() == like.device() ? index : index.to(like.device());
+}
+
+}  // namespace
+
+void add_sparse_conv(ParamMap& params, const std::string& prefix, int64_t in, int64_t out,
+                     int64_t kernel_size, bool bias, std::mt19937_64& rng, bool transposed) {
+    check_kernel_size(kernel_size, kContext);
+    const int64_t volume = kernel_size * kernel_size * kernel_size;
+    const double limit = 1.0 / std::sqrt(double((transposed ? out : in) * volume));
+    insert_new(params, prefix + ".weight", uniform_tensor({volume, in, out}, limit, rng));
+    if (bias) insert_new(params, prefix + ".bias", uniform_tensor({out}, limit, rng));
+}
+
+at::Tensor apply_kernel_map(const at::Tensor& features, const at::Tensor& weight,
+                            const at::Tensor& bias, const KernelMap& map) {
+    if (features.dim() != 2 || features.size(0) != map.input_size)
+        throw_input_error(kContext, "features {} do not match a kernel map from {} sites",
+                          shape_string(features), map.input_size);
+    if (weight.dim() != 3 || weight.size(0) != map.kernel_volume() ||
+        weight.size(1) != features.size(1))
+        throw_input_error(kContext, "weight {} does not match {} offsets and {} channels",
+                          shape_string(weight), map.kernel_volume(), features.size(1));
+    // Start from the centre tap where it maps every site to itself: no gather, no scatter.
+    at::Tensor out;
+    if (map.identity_offset >= 0)
+        out = features.mm(weight[map.identity_offset]);
+    else
+        out = at::zeros({map.output_size, weight.size(2)}, features.options());
+    for (int64_t k = 0; k < map.kernel_volume(); ++k) {
+        if (k == map.identity_offset || map.in[k].numel() == 0) continue;
+        at::Tensor gathered = features.index_select(0, on_device(map.in[k], features));
+        // In place: index_add_'s backward needs neither `out` nor its old value, and a fresh
+        // tensor per offset would copy the whole output K times.
+        out.index_add_(0, on_device(map.out[k], features), gathered.mm(weight[k]));
+    }
+    return bias.defined() ? out + bias : out;
+}
+
+SparseTensor sparse_conv(const SparseTensor& x, const ParamMap& params, const std::string& prefix,
+                         const SparseConvOptions& options) {
+    const at::Tensor& weight =
+        checked_weight(params, prefix, options.kernel_size, x.channels());
+    at::Tensor bias = optional_param(params, prefix + ".bias");
+    if (options.stride < 1)
+        throw_input_error(kContext, "stride must be >= 1, found {}", options.stride);
+    if (options.stride > 1 && options.dilation != 1)
+        throw_input_error(kContext, "dilation {} with stride {} is not supported",
+                          options.dilation, options.stride);
+    if (options.stride == 1) {
+        if (options.kernel_size == 1) {
+            at::Tensor out = x.features().mm(weight[0]);
+            return x.with_features(bias.defined() ? out + bias : out);
+        }
+        auto map = x.coords()->conv_map(options.kernel_size, options.dilation);
+        return x.with_features(apply_kernel_map(x.features(), weight, bias, *map));
+    }
+    auto map = x.coords()->down_map(options.kernel_size, options.stride);
+    return SparseTensor(x.coords()->coarser(options.stride),
+                        apply_kernel_map(x.features(), weight, bias, *map));
+}
+
+SparseTensor sparse_conv_transpose(const SparseTensor& x, const CoordinateSetPtr& target,
+                                   const ParamMap& params, const std::string& prefix,
+                                   int64_t kernel_size, int64_t factor) {
+    const at::Tensor& weight = checked_weight(params, prefix, kernel_size, x.channels());
+    if (!target || target->coarser(factor) != x.coords())
+        throw_input_error(kContext,
+                          "transposed convolution '{}': the target is not the set its input "
+                          "was strided down from",
+                          prefix);
+    KernelMap map = target->down_map(kernel_size, factor)->transposed();
+    return SparseTensor(target, apply_kernel_map(x.features(), weight,
+                                                 optional_param(params, prefix + ".bias"), map));
+}
+
+SparseTensor sparse_conv_generative(const SparseTensor& x, const ParamMap& params,
+                                    const std::string& prefix, int64_t kernel_size,
+                                    int64_t factor) {
+    const at::Tensor& weight = checked_weight(params, prefix, kernel_size, x.channels());
+    CoordinateSet::Generated generated = x.coords()->generated(kernel_size, factor);
+    return SparseTensor(generated.set,
+                        apply_kernel_map(x.features(), weight,
+                                         optional_param(params, prefix + ".bias"),
+                                         *generated.map));
+}
+
+}  // namespace pumeta
