@@ -29,9 +29,10 @@ Inputs make_inputs(uint64_t seed) {
 
 // out[b,i,c] = Σ_j exp(s_ij) v[b,j,c] / Σ_j exp(s_ij), s_ij = scale · q_i·k_j, with loops.
 at::Tensor loop_oracle(const Inputs& in, double scale) {
-    auto q = in.q.detach().accessor<double, 3>();
-    auto k = in.k.detach().accessor<double, 3>();
-    auto v = in.v.detach().accessor<double, 3>();
+    at::Tensor qt = in.q.detach(), kt = in.k.detach(), vt = in.v.detach();
+    auto q = qt.accessor<double, 3>();
+    auto k = kt.accessor<double, 3>();
+    auto v = vt.accessor<double, 3>();
     at::Tensor out = at::zeros({2, 5, 4}, at::kDouble);
     auto o = out.accessor<double, 3>();
     for (int b = 0; b < 2; ++b)
@@ -52,8 +53,7 @@ at::Tensor loop_oracle(const Inputs& in, double scale) {
 
 std::vector<at::Tensor> derivatives(const Inputs& in, const at::Tensor& out) {
     at::Tensor weights = at::linspace(-1, 1, out.numel(), out.options()).view(out.sizes());
-    auto first =
-        torch::autograd::grad({(out * weights).sum()}, {in.q, in.k, in.v}, {}, true, true);
+    auto first = torch::autograd::grad({(out * weights).sum()}, {in.q, in.k, in.v}, {}, true, true);
     at::Tensor norm = first[0].pow(2).sum() + first[1].pow(2).sum();
     auto second = torch::autograd::grad({norm}, {in.q, in.k, in.v});
     return {first[0], first[1], first[2], second[0], second[1], second[2]};

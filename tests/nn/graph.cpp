@@ -23,23 +23,31 @@ at::Tensor random_features(int64_t b, int64_t n, int64_t c, uint64_t seed,
 }  // namespace
 
 TEST(KnnGraph, MatchesSortedBruteForceAndExcludesSelf) {
-    const int64_t b = 2, n = 40, c = 7, k = 9;
-    at::Tensor x = random_features(b, n, c, 1);
-    at::Tensor idx = knn_graph(x, k);
-    ASSERT_EQ(idx.sizes(), (std::vector<int64_t>{b, n, k}));
-    auto acc = x.accessor<double, 3>();
-    for (int64_t e = 0; e < b; ++e) {
-        for (int64_t i = 0; i < n; ++i) {
-            std::vector<std::pair<double, int64_t>> all;
-            for (int64_t j = 0; j < n; ++j) {
-                if (j == i) continue;
-                double d = 0;
-                for (int64_t ch = 0; ch < c; ++ch) d += std::pow(acc[e][i][ch] - acc[e][j][ch], 2);
-                all.push_back({d, j});
+    // k = 39 of 40 candidates exercises the selection's fallback path, small k the fast one.
+    const int64_t b = 2, n = 41, c = 7;
+    for (at::ScalarType type : {at::kDouble, at::kFloat}) {
+        at::Tensor x = random_features(b, n, c, 1).to(type);
+        at::Tensor exact = x.to(at::kDouble);
+        auto acc = exact.accessor<double, 3>();
+        for (int64_t k : {1, 9, 25, 40}) {
+            SCOPED_TRACE("k = " + std::to_string(k));
+            at::Tensor idx = knn_graph(x, k);
+            ASSERT_EQ(idx.sizes(), (std::vector<int64_t>{b, n, k}));
+            for (int64_t e = 0; e < b; ++e) {
+                for (int64_t i = 0; i < n; ++i) {
+                    std::vector<std::pair<double, int64_t>> all;
+                    for (int64_t j = 0; j < n; ++j) {
+                        if (j == i) continue;
+                        double d = 0;
+                        for (int64_t ch = 0; ch < c; ++ch)
+                            d += std::pow(acc[e][i][ch] - acc[e][j][ch], 2);
+                        all.push_back({d, j});
+                    }
+                    std::sort(all.begin(), all.end());
+                    for (int64_t j = 0; j < k; ++j)
+                        ASSERT_EQ(idx[e][i][j].item<int64_t>(), all[j].second) << e << " " << i;
+                }
             }
-            std::sort(all.begin(), all.end());
-            for (int64_t j = 0; j < k; ++j)
-                EXPECT_EQ(idx[e][i][j].item<int64_t>(), all[j].second) << e << " " << i << " " << j;
         }
     }
 }
@@ -91,6 +99,26 @@ TEST(GatherMax, EqualsMaxOfGatheredNeighboursWithSameFirstAndSecondOrderGradient
     at::Tensor slow_second = torch::autograd::grad({slow_grad.pow(2).sum()}, {x})[0];
     EXPECT_TRUE(at::allclose(fast_second, slow_second, 0, 1e-12));
     EXPECT_GT(fast_second.abs().sum().item<double>(), 0);
+}
+
+TEST(MaxOverNeighbors, EqualsAmaxWithSameFirstAndSecondOrderGradients) {
+    at::Generator gen = at::detail::createCPUGenerator(9);
+    at::Tensor y =
+        at::randn({2, 5, 6, 7}, gen, at::TensorOptions().dtype(at::kDouble)).requires_grad_(true);
+    at::Tensor weight = at::randn({2, 5, 7}, gen, at::TensorOptions().dtype(at::kDouble));
+    at::Tensor fast = (max_over_neighbors(y).pow(3) * weight).sum();
+    at::Tensor slow = (y.amax(2).pow(3) * weight).sum();
+    EXPECT_NEAR(fast.item<double>(), slow.item<double>(), 1e-12);
+    at::Tensor fast_grad = torch::autograd::grad({fast}, {y}, {}, true, true)[0];
+    at::Tensor slow_grad = torch::autograd::grad({slow}, {y}, {}, true, true)[0];
+    EXPECT_TRUE(at::allclose(fast_grad, slow_grad, 0, 1e-12));
+    at::Tensor fast_second = torch::autograd::grad({fast_grad.pow(2).sum()}, {y})[0];
+    at::Tensor slow_second = torch::autograd::grad({slow_grad.pow(2).sum()}, {y})[0];
+    EXPECT_TRUE(at::allclose(fast_second, slow_second, 0, 1e-12));
+    EXPECT_GT(fast_second.abs().sum().item<double>(), 0);
+    // A strided (non-contiguous) input gives the same maxima.
+    at::Tensor strided = y.detach().transpose(1, 2).contiguous().transpose(1, 2);
+    EXPECT_TRUE(max_over_neighbors(strided).equal(y.detach().amax(2)));
 }
 
 TEST(GatherMax, FloatAndDoubleAgreeAndBadIndicesAreRejected) {

@@ -19,7 +19,7 @@ at::Tensor brute_force(const at::Tensor& points, int64_t neighbors, double h) {
     at::Tensor sq = diff.pow(2).sum(-1);
     at::Tensor masked =
         sq.detach() + at::eye(points.size(1), points.options()).mul(1e30).unsqueeze(0);
-    at::Tensor order = masked.argsort(-1).narrow(-1, 0, neighbors);
+    at::Tensor order = masked.argsort(/*dim=*/int64_t{-1}).narrow(-1, 0, neighbors);
     return at::relu(h - sq.gather(-1, order)).mean();
 }
 
@@ -36,9 +36,8 @@ TEST(RepulsionLoss, HandComputedPair) {
 TEST(RepulsionLoss, MatchesBruteForceInValueAndGradient) {
     // Crowded points (spacing ~0.01) so that most hinges are active, in double precision.
     at::Generator gen = at::detail::createCPUGenerator(3);
-    at::Tensor points =
-        (at::rand({2, 60, 3}, gen, at::TensorOptions().dtype(at::kDouble)) * 0.08)
-            .requires_grad_(true);
+    at::Tensor points = (at::rand({2, 60, 3}, gen, at::TensorOptions().dtype(at::kDouble)) * 0.08)
+                            .requires_grad_(true);
     for (int64_t neighbors : {1, 4, 7}) {
         at::Tensor ours = repulsion_loss(points, neighbors);
         at::Tensor expected = brute_force(points, neighbors, 1e-3);

@@ -1,5 +1,5 @@
 // pumeta upsample IN -o OUT [--model M] [--ratio R] [--tta-steps N] ...; pumeta eval ...;
-// pumeta meta-train --config C.
+// pumeta meta-train --config C [--world-size W --rank R --master HOST:PORT].
 #include <spdlog/spdlog.h>
 
 #include <cmath>
@@ -8,6 +8,7 @@
 #include "pumeta/cli/commands.h"
 #include "pumeta/cli/config_file.h"
 #include "pumeta/core/device.h"
+#include "pumeta/distributed/process_group.h"
 #include "pumeta/eval/evaluate_cases.h"
 #include "pumeta/inference/model_file.h"
 #include "pumeta/meta/meta_trainer.h"
@@ -157,6 +158,9 @@ void add_meta_train_command(CLI::App& app) {
         bool resume = false;
         bool first_order = false;
         double max_minutes = 0;
+        int64_t world_size = 0;  // 0, -1, "": not given
+        int64_t rank = -1;
+        std::string master;
     };
     auto args = std::make_shared<Args>();
     CLI::App* command =
@@ -167,10 +171,22 @@ void add_meta_train_command(CLI::App& app) {
     command->add_flag("--first-order", args->first_order, "first-order MAML (FOMAML)");
     command->add_option("--max-minutes", args->max_minutes,
                         "checkpoint and stop after this many minutes (0 = no limit)");
+    command->add_option("--world-size", args->world_size,
+                        "processes of a distributed run (default: $WORLD_SIZE, else 1)")
+        ->check(CLI::PositiveNumber);
+    command->add_option("--rank", args->rank, "this process's rank (default: $RANK)")
+        ->check(CLI::NonNegativeNumber);
+    command->add_option("--master", args->master,
+                        "HOST:PORT where rank 0 serves the rendezvous (default: "
+                        "$MASTER_ADDR:$MASTER_PORT)");
     command->callback([args] {
         nlohmann::json j = read_json_file(args->config);
         apply_overrides(j, args->overrides);
         if (args->first_order) j["meta"]["first_order"] = true;
+        apply_distributed_environment(j["distributed"]);
+        if (args->world_size > 0) j["distributed"]["world_size"] = args->world_size;
+        if (args->rank >= 0) j["distributed"]["rank"] = args->rank;
+        if (!args->master.empty()) j["distributed"]["master"] = args->master;
         MetaTrainResult r =
             meta_train(MetaTrainConfig::from_json(j), args->resume, args->max_minutes * 60.0);
         print_json({{"steps", r.steps},

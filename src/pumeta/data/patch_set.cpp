@@ -6,6 +6,7 @@
 #include <cmath>
 #include <filesystem>
 #include <numeric>
+#include <optional>
 
 #include "pumeta/core/error.h"
 #include "pumeta/geometry/sampling.h"
@@ -103,22 +104,40 @@ std::string to_string(InputSampler sampler) {
     return "?";
 }
 
-Batch make_pair(const at::Tensor& gt_patch, int64_t input_points, InputSampler sampler,
-                std::mt19937_64& rng) {
+namespace {
+
+/// The random choices of one training pair, drawn before any geometry is built so that a
+/// sharded loader can pass over the other shards' patches leaving the generator exactly where
+/// building them would have.
+struct PairDraw {
+    int64_t fps_start = 0;     ///< kFps: first point of the farthest point sampling
+    uint64_t subset_seed = 0;  ///< kRandom, kNonuniform: seed of the subset
+};
+
+/// `gt_points` is the GT patch's point count (the range of the FPS start).
+PairDraw draw_pair(int64_t gt_points, InputSampler sampler, std::mt19937_64& rng) {
+    PairDraw draw;
+    if (sampler == InputSampler::kFps)
+        draw.fps_start = std::uniform_int_distribution<int64_t>(0, gt_points - 1)(rng);
+    else
+        draw.subset_seed = rng();
+    return draw;
+}
+
+Batch build_pair(const at::Tensor& gt_patch, int64_t input_points, InputSampler sampler,
+                 const PairDraw& draw) {
     int64_t n = gt_patch.size(0);
     at::Tensor indices;
     switch (sampler) {
-        case InputSampler::kFps: {
-            int64_t start = std::uniform_int_distribution<int64_t>(0, n - 1)(rng);
-            indices = farthest_point_sampling(gt_patch, input_points, start);
+        case InputSampler::kFps:
+            indices = farthest_point_sampling(gt_patch, input_points, draw.fps_start);
             break;
-        }
         case InputSampler::kRandom:
-            indices = random_subset(n, input_points, rng());
+            indices = random_subset(n, input_points, draw.subset_seed);
             break;
         case InputSampler::kNonuniform:
             // gt_patch rows are sorted by distance to the seed, as the sampler expects.
-            indices = nonuniform_subset(n, input_points, rng());
+            indices = nonuniform_subset(n, input_points, draw.subset_seed);
             break;
     }
     at::Tensor input = gt_patch.index_select(0, indices);
@@ -129,11 +148,53 @@ Batch make_pair(const at::Tensor& gt_patch, int64_t input_points, InputSampler s
     return {(input - centroid) * scale, gt * scale};
 }
 
+/// The augmentation of one pair: random rotation, scale in [0.8, 1.2], clipped jitter.
+struct Augmentation {
+    at::Tensor rotation;  ///< float32 [3,3], applied as points · rotation
+    float scale = 1;
+    at::Tensor jitter;  ///< float32 [input_points, 3], added to the input only
+};
+
+/// `normal` carries state between calls (it caches every second value), so one is shared by
+/// the whole batch.
+Augmentation draw_augmentation(int64_t input_points, std::mt19937_64& rng,
+                               std::normal_distribution<float>& normal) {
+    Augmentation a;
+    a.rotation = random_rotation(rng).t();
+    a.scale = std::uniform_real_distribution<float>(0.8f, 1.2f)(rng);
+    a.jitter = at::empty({input_points, 3}, at::kFloat);
+    float* j = a.jitter.data_ptr<float>();
+    for (int64_t i = 0; i < a.jitter.numel(); ++i)
+        j[i] = std::clamp(0.01f * normal(rng), -0.03f, 0.03f);
+    return a;
+}
+
+/// Points in GT patch s without cutting it (see PatchSet::gt_patch).
+int64_t gt_patch_points(const PatchSet& set, int64_t s) {
+    int64_t mesh = set.seeds[s][0].item<int64_t>();
+    int64_t mesh_points = (set.offsets[mesh + 1] - set.offsets[mesh]).item<int64_t>();
+    return std::min(set.patch_points * set.ratio, mesh_points);
+}
+
+}  // namespace
+
+Batch make_pair(const at::Tensor& gt_patch, int64_t input_points, InputSampler sampler,
+                std::mt19937_64& rng) {
+    return build_pair(gt_patch, input_points, sampler, draw_pair(gt_patch.size(0), sampler, rng));
+}
+
 PatchLoader::PatchLoader(const PatchSet& set, LoaderOptions options)
     : set_(set), options_(options) {
     if (set.num_patches() < options.batch_size)
         throw_input_error("", "patch set has {} patches, fewer than the batch size {}",
                           set.num_patches(), options.batch_size);
+    if (options.shard_count < 1 || options.shard_index < 0 ||
+        options.shard_index >= options.shard_count)
+        throw_input_error("", "shard {} of {} does not exist", options.shard_index,
+                          options.shard_count);
+    if (options.batch_size % options.shard_count != 0)
+        throw_input_error("", "batch size {} does not split into {} equal shards",
+                          options.batch_size, options.shard_count);
     start_epoch(0);
 }
 
@@ -159,24 +220,23 @@ Batch PatchLoader::next() {
     if (in_epoch == 0 && position_ > 0) start_epoch(position_ / per_epoch);
     // Each batch has its own generator: resuming at a position reproduces it exactly.
     std::mt19937_64 rng(options_.seed ^ (0x9e3779b97f4a7c15ull * (position_ + 1)));
-    std::vector<at::Tensor> inputs, gts;
-    inputs.reserve(options_.batch_size);
-    gts.reserve(options_.batch_size);
     std::normal_distribution<float> normal(0.f, 1.f);
-    std::uniform_real_distribution<float> scale_dist(0.8f, 1.2f);
+    int64_t shard_size = options_.batch_size / options_.shard_count;
+    int64_t first = options_.shard_index * shard_size;
+    std::vector<at::Tensor> inputs, gts;
+    inputs.reserve(shard_size);
+    gts.reserve(shard_size);
     for (int64_t b = 0; b < options_.batch_size; ++b) {
         int64_t s = order_[in_epoch * options_.batch_size + b];
-        Batch pair = make_pair(set_.gt_patch(s), set_.patch_points, options_.sampler, rng);
-        if (options_.augment) {
-            at::Tensor rotation = random_rotation(rng).t();
-            float scale = scale_dist(rng);
-            pair.input = pair.input.matmul(rotation) * scale;
-            pair.gt = pair.gt.matmul(rotation) * scale;
-            at::Tensor jitter = at::empty_like(pair.input);
-            float* j = jitter.data_ptr<float>();
-            for (int64_t i = 0; i < jitter.numel(); ++i)
-                j[i] = std::clamp(0.01f * normal(rng), -0.03f, 0.03f);
-            pair.input = pair.input + jitter;
+        PairDraw draw = draw_pair(gt_patch_points(set_, s), options_.sampler, rng);
+        std::optional<Augmentation> augmentation;
+        if (options_.augment) augmentation = draw_augmentation(set_.patch_points, rng, normal);
+        if (b < first || b >= first + shard_size) continue;  // another shard's patch
+        Batch pair = build_pair(set_.gt_patch(s), set_.patch_points, options_.sampler, draw);
+        if (augmentation) {
+            pair.input = pair.input.matmul(augmentation->rotation) * augmentation->scale +
+                         augmentation->jitter;
+            pair.gt = pair.gt.matmul(augmentation->rotation) * augmentation->scale;
         }
         inputs.push_back(pair.input);
         gts.push_back(pair.gt);

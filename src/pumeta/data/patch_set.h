@@ -47,10 +47,16 @@ struct LoaderOptions {
     /// Random rotation, scale in [0.8, 1.2], jitter sigma 0.01 clipped to 0.03 (on the input).
     bool augment = true;
     uint64_t seed = 0;
+    /// Distributed sampling: the loader yields only the shard_index-th of shard_count equal,
+    /// contiguous parts of every batch (batch_size must divide evenly), each patch exactly as
+    /// the unsharded loader draws it, so the shards of all ranks together are the full batch.
+    int64_t shard_index = 0;
+    int64_t shard_count = 1;
 };
 
 /// A training batch, each patch normalised by its GT patch's centroid and radius.
 ///   input: float32 [B, patch_points, 3];  gt: float32 [B, patch_points·ratio, 3]
+/// (B = batch_size / shard_count for a sharded loader).
 struct Batch {
     at::Tensor input;
     at::Tensor gt;

@@ -23,6 +23,21 @@ bool contains(const std::string& text, const std::string& word) {
     return lower(text).find(lower(word)) != std::string::npos;
 }
 
+/// Java .properties files are ISO-8859-1: each byte is one code point.
+std::string latin1_to_utf8(const std::string& text) {
+    std::string out;
+    out.reserve(text.size());
+    for (unsigned char c : text) {
+        if (c < 0x80) {
+            out += static_cast<char>(c);
+        } else {
+            out += static_cast<char>(0xC0 | (c >> 6));
+            out += static_cast<char>(0x80 | (c & 0x3F));
+        }
+    }
+    return out;
+}
+
 /// Parses "key#N=value" lines of a catalogue into N -> {key -> value}.
 std::map<int, std::map<std::string, std::string>> parse_catalogue(const fs::path& file) {
     std::ifstream in(file);
@@ -39,7 +54,7 @@ std::map<int, std::map<std::string, std::string>> parse_catalogue(const fs::path
         std::string index = line.substr(hash + 1, eq - hash - 1);
         if (index.empty() || index.find_first_not_of("0123456789") != std::string::npos)
             continue;
-        entries[std::stoi(index)][line.substr(0, hash)] = line.substr(eq + 1);
+        entries[std::stoi(index)][line.substr(0, hash)] = latin1_to_utf8(line.substr(eq + 1));
     }
     return entries;
 }

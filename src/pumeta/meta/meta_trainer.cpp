@@ -44,6 +44,7 @@ MetaTrainConfig MetaTrainConfig::from_json(const nlohmann::json& j) {
         else if (key == "val_tasks") c.val_tasks = value;
         else if (key == "checkpoint_every") c.checkpoint_every = value;
         else if (key == "seed") c.seed = value;
+        else if (key == "distributed") c.distributed = DistributedConfig::from_json(value);
         else if (key == "comment") continue;
         else throw_input_error("meta-train config", "unknown field '{}'", key);
     }
@@ -51,6 +52,10 @@ MetaTrainConfig MetaTrainConfig::from_json(const nlohmann::json& j) {
         if (j.value(field, std::string()).empty())
             throw_input_error("meta-train config", "'{}' is required", field);
     if (c.tasks_per_batch < 1) throw_input_error("meta-train config", "tasks_per_batch < 1");
+    if (c.tasks_per_batch % c.distributed.world_size != 0)
+        throw_input_error("meta-train config",
+                          "tasks_per_batch {} does not split evenly over {} processes",
+                          c.tasks_per_batch, c.distributed.world_size);
     parse_input_sampler(c.sampler);
     return c;
 }
@@ -73,18 +78,21 @@ nlohmann::json MetaTrainConfig::to_json() const {
             {"val_every", val_every},
             {"val_tasks", val_tasks},
             {"checkpoint_every", checkpoint_every},
-            {"seed", seed}};
+            {"seed", seed},
+            {"distributed", distributed.to_json()}};
 }
 
 namespace {
 
+/// Validation on this rank's shard of the held-out tasks, combined over all ranks.
 AdaptationScore score_adaptation(const Backbone& model, const ValidationSet& val,
                                  const MetaOptions& meta, const StepSizes& step_sizes,
-                                 uint64_t seed) {
+                                 uint64_t seed, ProcessGroup& group) {
     AdaptationScore score;
     int64_t n = val.input.size(0);
+    Shard shard = shard_of(n, group.rank(), group.world_size());
     std::vector<at::Tensor> before, after;
-    for (int64_t i = 0; i < n; ++i) {
+    for (int64_t i = shard.begin; i < shard.end; ++i) {
         at::Tensor x = val.input.slice(0, i, i + 1);
         at::Tensor x_down = model.downsample(x, seed + static_cast<uint64_t>(i));
         std::vector<double> losses;
@@ -96,9 +104,42 @@ AdaptationScore score_adaptation(const Backbone& model, const ValidationSet& val
         before.push_back(model.upsample(x));
         after.push_back(model.upsample(x, adapted));
     }
-    score.cd_before = mean_chamfer(at::cat(before), val.gt);
-    score.cd_after = mean_chamfer(at::cat(after), val.gt);
-    return score;
+    at::Tensor gt = val.gt.slice(0, shard.begin, shard.end);
+    double share = static_cast<double>(shard.size()) / n;
+    if (shard.size() > 0) {
+        score.cd_before = mean_chamfer(at::cat(before), gt) * share;
+        score.cd_after = mean_chamfer(at::cat(after), gt) * share;
+    }
+    if (!group.enabled()) return score;
+    auto scalar = [](double v) { return at::scalar_tensor(v, at::kDouble); };
+    ParamMap totals = group.sum({{"cd_before", scalar(score.cd_before)},
+                                 {"cd_after", scalar(score.cd_after)},
+                                 {"inner_before", scalar(score.inner_loss_before)},
+                                 {"inner_after", scalar(score.inner_loss_after)}});
+    return {totals["cd_before"].item<double>(), totals["cd_after"].item<double>(),
+            totals["inner_before"].item<double>(), totals["inner_after"].item<double>()};
+}
+
+/// Averages one outer step over the ranks in one collective: the gradients, the losses for
+/// the log, and whether any rank wants to stop (so that all stop at the same step).
+void all_reduce_step(ProcessGroup& group, MetaStepResult& r, bool& stop) {
+    const at::Tensor& like = r.grads.begin()->second;
+    auto scalar = [&like](double v) { return at::scalar_tensor(v, like.options()); };
+    ParamMap packet = r.grads;
+    for (const auto& [name, g] : r.step_size_grads) packet["alpha/" + name] = g;
+    packet["~outer_loss"] = scalar(r.outer_loss);
+    packet["~outer_loss_before"] = scalar(r.outer_loss_before);
+    packet["~inner_loss_before"] = scalar(r.inner_loss_before);
+    packet["~inner_loss_after"] = scalar(r.inner_loss_after);
+    packet["~stop"] = scalar(stop ? 1 : 0);
+    ParamMap mean = group.average(packet);
+    for (auto& [name, g] : r.grads) g = mean.at(name);
+    for (auto& [name, g] : r.step_size_grads) g = mean.at("alpha/" + name);
+    r.outer_loss = mean.at("~outer_loss").item<double>();
+    r.outer_loss_before = mean.at("~outer_loss_before").item<double>();
+    r.inner_loss_before = mean.at("~inner_loss_before").item<double>();
+    r.inner_loss_after = mean.at("~inner_loss_after").item<double>();
+    stop = mean.at("~stop").item<double>() > 0;
 }
 
 void append_log(const fs::path& file, const nlohmann::json& record) {
@@ -110,7 +151,10 @@ void append_log(const fs::path& file, const nlohmann::json& record) {
 MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume,
                            double stop_after_seconds) {
     check_blas_speed();
-    fs::create_directories(config.run_dir);
+    ProcessGroup group(config.distributed);
+    // Rank 0 alone writes the run directory; the others only read it when resuming.
+    bool writes = group.is_main();
+    if (writes) fs::create_directories(config.run_dir);
     fs::path state_file = fs::path(config.run_dir) / "state.ckpt";
     fs::path log_file = fs::path(config.run_dir) / "log.jsonl";
 
@@ -122,11 +166,12 @@ MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume,
         model = std::move(state.model);
         info = state.info;
         optimizer_state = std::move(state.optimizer);
-        spdlog::info("meta-train: resuming {} at step {}", config.run_dir,
-                     info.value("step", int64_t{0}));
+        if (writes)
+            spdlog::info("meta-train: resuming {} at step {}", config.run_dir,
+                         info.value("step", int64_t{0}));
     } else {
         model = load_checkpoint(config.init).backbone;
-        fs::remove(log_file);
+        if (writes) fs::remove(log_file);
     }
     StepSizes step_sizes;
     if (config.meta.learn_inner_lr) {
@@ -142,7 +187,12 @@ MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume,
     loader_options.sampler = parse_input_sampler(config.sampler);
     loader_options.augment = config.augment;
     loader_options.seed = config.seed;
+    loader_options.shard_index = group.rank();
+    loader_options.shard_count = group.world_size();
     PatchLoader loader(train_set, loader_options);
+    // Task n of a batch is the n-th of the whole batch: its X↓ seed must not depend on W.
+    auto first_task =
+        static_cast<uint64_t>(config.tasks_per_batch / group.world_size() * group.rank());
     std::optional<ValidationSet> val;
     if (!config.val_data.empty())
         val = make_validation_set(load_patch_set(config.val_data), config.val_tasks,
@@ -162,8 +212,22 @@ MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume,
         outer.load_state(theta_state, info.at("adam"));
         if (step_size_optimizer) step_size_optimizer->load_state(alpha_state, info.at("adam_alpha"));
         step = info.at("step");
-        best = info.value("best_cd_after", best);
+        // A run without validation stores its initial infinity, which JSON writes as null.
+        if (info.value("best_cd_after", nlohmann::json()).is_number()) best = info["best_cd_after"];
         loader.seek(info.at("loader_position"));
+    }
+    {
+        ParamMap state;
+        for (auto& [name, p] : model->parameters()) state["theta/" + name] = p;
+        for (auto& [name, b] : model->buffers()) state["buffer/" + name] = b;
+        for (auto& [name, t] : outer.state()) state["adam/" + name] = t;
+        for (auto& [name, a] : step_sizes) state["alpha/" + name] = a;
+        if (step_size_optimizer)
+            for (auto& [name, t] : step_size_optimizer->state()) state["adam_alpha/" + name] = t;
+        start_in_sync(
+            group,
+            {{"step", step}, {"loader_position", loader.position()}, {"adam_steps", outer.steps()}},
+            state);
     }
 
     auto model_extra = [&] {
@@ -191,13 +255,13 @@ MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume,
     };
     auto validate = [&] {
         MetaOptions meta = config.meta;
-        last = score_adaptation(*model, *val, meta, step_sizes, config.seed + 99991);
+        last = score_adaptation(*model, *val, meta, step_sizes, config.seed + 99991, group);
         bool improved = last.cd_after < best;
-        if (improved) {
-            best = last.cd_after;
+        if (improved) best = last.cd_after;
+        if (!writes) return;
+        if (improved)
             save_checkpoint((fs::path(config.run_dir) / "best.pt").string(), *model,
                             model_extra());
-        }
         append_log(log_file, {{"step", step},
                               {"val_cd_before", last.cd_before},
                               {"val_cd_after", last.cd_after},
@@ -215,25 +279,33 @@ MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume,
     auto elapsed = [&] {
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     };
-    ProgressBar progress(config.steps, "meta-train");
+    std::optional<ProgressBar> progress;
+    if (writes) progress.emplace(config.steps, "meta-train");
     int64_t first_step = step;
     while (step < config.steps) {
         Batch batch = loader.next();
         outer.set_lr(config.outer_lr *
                      std::pow(config.outer_lr_decay,
                               static_cast<double>(step) / config.outer_lr_decay_steps));
-        MetaStepResult r = meta_gradient(*model, batch.input, batch.gt, config.meta, step_sizes,
-                                         config.seed * 1000003 + static_cast<uint64_t>(step) * 64,
-                                         step);
+        MetaStepResult r = meta_gradient(
+            *model, batch.input, batch.gt, config.meta, step_sizes,
+            config.seed * 1000003 + static_cast<uint64_t>(step) * 64 + first_task, step);
+        bool stop = stop_after_seconds > 0 && elapsed() > stop_after_seconds;
+        if (group.enabled()) all_reduce_step(group, r, stop);
         if (!std::isfinite(r.outer_loss))
             throw InternalError(fmt::format("meta-train: outer loss became {} at step {}",
                                             r.outer_loss, step));
         outer.step(r.grads);
         if (step_size_optimizer) step_size_optimizer->step(r.step_size_grads);
         ++step;
-        progress.update(step, fmt::format("outer {:.3e} (unadapted {:.3e})", r.outer_loss,
-                                          r.outer_loss_before));
-        if (step % config.log_every == 0)
+        if (config.distributed.check_every > 0 && step % config.distributed.check_every == 0 &&
+            !group.identical(model->parameters()))
+            throw InternalError(
+                fmt::format("meta-train: the ranks' parameters differ after step {}", step));
+        if (progress)
+            progress->update(step, fmt::format("outer {:.3e} (unadapted {:.3e})", r.outer_loss,
+                                               r.outer_loss_before));
+        if (writes && step % config.log_every == 0)
             append_log(log_file, {{"step", step},
                                   {"outer_loss", r.outer_loss},
                                   {"outer_loss_before", r.outer_loss_before},
@@ -242,16 +314,19 @@ MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume,
                                   {"lr", outer.lr()},
                                   {"seconds", elapsed()},
                                   {"steps_per_second", (step - first_step) / elapsed()}});
-        bool stop = stop_after_seconds > 0 && elapsed() > stop_after_seconds;
         if (val && (step % config.val_every == 0 || step == config.steps || stop)) validate();
-        if (step % config.checkpoint_every == 0 || step == config.steps || stop) save_state();
+        if (writes && (step % config.checkpoint_every == 0 || step == config.steps || stop))
+            save_state();
         if (stop) {
-            spdlog::info("meta-train: time limit reached at step {}; continue with --resume",
-                         step);
+            if (writes)
+                spdlog::info("meta-train: time limit reached at step {}; continue with --resume",
+                             step);
             break;
         }
     }
-    progress.finish();
+    if (progress) progress->finish();
+    // Every rank returns only once rank 0's last checkpoint is on disk.
+    group.barrier();
     return {step, last, best};
 }
 

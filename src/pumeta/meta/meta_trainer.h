@@ -2,6 +2,11 @@
 // directory has the same layout as pretraining's (train/trainer.h): state.ckpt, model.pt,
 // best.pt (lowest validation CD after adaptation) and log.jsonl. Saved models carry the
 // meta options (and learned step sizes) in their JSON, so `pumeta upsample` adapts with them.
+//
+// Data-parallel over W processes (config.distributed): every rank takes B/W tasks of each
+// outer batch and the outer gradients are averaged before the optimiser step, which gives
+// the update of one process with all B tasks (up to float summation order). Rank 0 alone
+// writes the run directory; every rank resumes from it.
 #pragma once
 
 #include <nlohmann/json.hpp>
@@ -9,6 +14,7 @@
 #include <cstdint>
 #include <string>
 
+#include "pumeta/distributed/process_group.h"
 #include "pumeta/meta/maml.h"
 
 namespace pumeta {
@@ -35,6 +41,8 @@ struct MetaTrainConfig {
     int64_t val_tasks = 64;
     int64_t checkpoint_every = 25;
     uint64_t seed = 1;
+    /// Processes and rendezvous; tasks_per_batch must be a multiple of the world size.
+    DistributedConfig distributed;
 
     static MetaTrainConfig from_json(const nlohmann::json& j);
     nlohmann::json to_json() const;

@@ -72,8 +72,8 @@ void match_original_xavier(ParamMap& params, const std::string& name, int64_t dr
     params.at(name).mul_(std::sqrt(double(drawn) / double(original)));
 }
 
-void add_regressor(ParamMap& params, const std::string& prefix, int64_t in,
-                   const DisPuOptions& o, std::mt19937_64& rng) {
+void add_regressor(ParamMap& params, const std::string& prefix, int64_t in, const DisPuOptions& o,
+                   std::mt19937_64& rng) {
     add_linear(params, prefix + ".fc0", in, o.regressor_channels, /*bias=*/true, rng);
     add_linear(params, prefix + ".fc1", o.regressor_channels, o.regressor_bottleneck, true, rng);
     add_linear(params, prefix + ".fc2", o.regressor_bottleneck, 3, true, rng);
@@ -263,10 +263,10 @@ at::Tensor DisPu::extract_features(const at::Tensor& x, const ParamMap& params) 
         at::Tensor y0 = edge_conv_edges(in, graph, params, prefix + ".edge");
         const at::Tensor& w1 = param(params, prefix + ".l1.weight");
         const at::Tensor& w2 = param(params, prefix + ".l2.weight");
-        at::Tensor y1 = at::relu(
-            conv1x1_weights(y0, w1.narrow(1, 0, g), {}) +
-            conv1x1_weights(in, w1.narrow(1, g, c), param(params, prefix + ".l1.bias"))
-                .unsqueeze(2));
+        at::Tensor y1 =
+            at::relu(conv1x1_weights(y0, w1.narrow(1, 0, g), {}) +
+                     conv1x1_weights(in, w1.narrow(1, g, c), param(params, prefix + ".l1.bias"))
+                         .unsqueeze(2));
         at::Tensor y2 =
             conv1x1_weights(at::cat({y1, y0}, -1), w2.narrow(1, 0, 2 * g), {}) +
             conv1x1_weights(in, w2.narrow(1, 2 * g, c), param(params, prefix + ".l2.bias"))
@@ -361,14 +361,15 @@ at::Tensor DisPu::upsample(const at::Tensor& x, const ParamMap& params) const {
 at::Tensor DisPu::loss(const at::Tensor& input, const at::Tensor& target, const ParamMap& params,
                        int64_t step) const {
     DisPuOutput out = forward(input, params, NormStatistics::kBatch);
-    const double w = dispu_fine_weight(std::max(step, pretrain_steps() - 1),
-                                       options_.steps_per_epoch);
+    const double w =
+        dispu_fine_weight(std::max(step, pretrain_steps() - 1), options_.steps_per_epoch);
     // Dis-PU's Chamfer distance sums the two directions' means: 2 · chamfer_loss.
-    at::Tensor total = 2000.0 * chamfer_loss(out.coarse, target) +
-                       w * 2000.0 * chamfer_loss(out.fine, target);
+    at::Tensor total =
+        2000.0 * chamfer_loss(out.coarse, target) + w * 2000.0 * chamfer_loss(out.fine, target);
     if (options_.repulsion_weight > 0) {
         int64_t neighbors = std::min(kRepulsionNeighbors, out.fine.size(1) - 1);
-        total = total + options_.repulsion_weight * repulsion_loss(out.fine, neighbors, kRepulsionH);
+        total =
+            total + options_.repulsion_weight * repulsion_loss(out.fine, neighbors, kRepulsionH);
     }
     return total;
 }

@@ -7,6 +7,7 @@
 #include "pumeta/core/error.h"
 #include "pumeta/core/tensor_checks.h"
 #include "pumeta/models/downsample.h"
+#include "pumeta/nn/batch_norm.h"
 #include "pumeta/nn/sparse/sparse_conv.h"
 #include "pumeta/nn/sparse/sparse_ops.h"
 #include "pumeta/nn/sparse/voxelize.h"
@@ -50,7 +51,7 @@ struct Layers {
         return sparse_conv(x, params, name, {kernel_size, 1, dilation});
     }
     SparseTensor bn(const SparseTensor& x, const std::string& name) const {
-        return x.with_features(sparse_batch_norm(x.features(), params, name, norm));
+        return sparse_batch_norm(x, params, name, norm);
     }
     SparseTensor relu(const SparseTensor& x) const { return x.with_features(at::relu(x.features())); }
     /// conv → batch norm → ReLU, the unit of both blocks.
@@ -348,11 +349,10 @@ at::Tensor PuDense::downsample(const at::Tensor& dense, uint64_t seed) const {
 void PuDense::update_buffers(const at::Tensor& input, const ParamMap& params) {
     check_input(input, params, "pudense input");
     at::NoGradGuard no_grad;
-    ParamMap observed;
     BatchNormContext norm;
-    norm.observed = &observed;
+    norm.update = &buffers_;
+    norm.momentum = options_.bn_momentum;
     occupancy(voxels(input), params, norm);
-    update_running_statistics(buffers_, observed, options_.bn_momentum);
 }
 
 std::unique_ptr<Backbone> make_pudense(const nlohmann::json& config) {

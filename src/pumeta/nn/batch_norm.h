@@ -27,8 +27,7 @@ at::Tensor batch_norm_batch_stats(const at::Tensor& x, const ParamMap& params,
 /// Inference mode: the same with `prefix.running_mean` and `prefix.running_var` from `buffers`
 /// (converted to x's dtype and device).
 at::Tensor batch_norm_running_stats(const at::Tensor& x, const ParamMap& params,
-                                    const ParamMap& buffers, const std::string& prefix,
-                                    double eps);
+                                    const ParamMap& buffers, const std::string& prefix, double eps);
 
 /// running ← (1 − momentum) · running + momentum · batch, for the mean and the unbiased
 /// variance of x [..., C] (as TensorFlow's fused batch norm and PyTorch do). No gradient.

@@ -4,6 +4,8 @@
 #include <ATen/Parallel.h>
 
 #include <algorithm>
+#include <limits>
+#include <type_traits>
 #include <vector>
 
 #include "pumeta/core/error.h"
@@ -13,27 +15,60 @@ namespace pumeta {
 
 namespace {
 
-// Squared distances of one query to all points in structure-of-arrays layout (vectorisable),
-// then the first minimum.
+// Nearest point of each query by exact squared differences. Points are in structure-of-arrays
+// layout, processed in blocks of kLanes with a running minimum per lane, so the inner loop
+// is branch-free and vectorises; the lanes are reduced at the end (first index on ties).
 template <typename scalar_t>
 void nearest_cpu(const at::Tensor& queries, const at::Tensor& points_soa, at::Tensor& out) {
+    constexpr int64_t kLanes = 16;
     const int64_t num_queries = queries.size(1), num_points = points_soa.size(2);
+    const int64_t full = num_points / kLanes * kLanes;
     const scalar_t* q = queries.data_ptr<scalar_t>();
     const scalar_t* p = points_soa.data_ptr<scalar_t>();
     int64_t* result = out.data_ptr<int64_t>();
     at::parallel_for(0, queries.size(0) * num_queries, 64, [&](int64_t begin, int64_t end) {
-        std::vector<scalar_t> distances(static_cast<size_t>(num_points));
         for (int64_t row = begin; row < end; ++row) {
             const scalar_t* px = p + (row / num_queries) * 3 * num_points;
             const scalar_t* py = px + num_points;
             const scalar_t* pz = py + num_points;
             const scalar_t qx = q[3 * row], qy = q[3 * row + 1], qz = q[3 * row + 2];
-            for (int64_t m = 0; m < num_points; ++m) {
+            auto distance = [&](int64_t m) {
                 scalar_t dx = px[m] - qx, dy = py[m] - qy, dz = pz[m] - qz;
-                distances[m] = dx * dx + dy * dy + dz * dz;
+                return dx * dx + dy * dy + dz * dz;
+            };
+            // Same-width value and index lanes, selected with masks: vectorisable.
+            using index_t = std::conditional_t<sizeof(scalar_t) == 4, int32_t, int64_t>;
+            scalar_t best[kLanes];
+            index_t best_index[kLanes];
+            for (int64_t lane = 0; lane < kLanes; ++lane) {
+                best[lane] = std::numeric_limits<scalar_t>::infinity();
+                best_index[lane] = index_t(lane);
             }
-            auto nearest = std::min_element(distances.begin(), distances.end());
-            result[row] = nearest - distances.begin();
+            for (int64_t start = 0; start < full; start += kLanes) {
+                for (int64_t lane = 0; lane < kLanes; ++lane) {
+                    scalar_t d = distance(start + lane);
+                    index_t mask = -index_t(d < best[lane]);  // all ones where closer
+                    best[lane] = d < best[lane] ? d : best[lane];
+                    best_index[lane] = (index_t(start + lane) & mask) | (best_index[lane] & ~mask);
+                }
+            }
+            scalar_t nearest = std::numeric_limits<scalar_t>::infinity();
+            int64_t nearest_index = 0;
+            for (int64_t lane = 0; lane < kLanes; ++lane) {
+                if (best[lane] < nearest ||
+                    (best[lane] == nearest && int64_t(best_index[lane]) < nearest_index)) {
+                    nearest = best[lane];
+                    nearest_index = best_index[lane];
+                }
+            }
+            for (int64_t m = full; m < num_points; ++m) {
+                scalar_t d = distance(m);
+                if (d < nearest) {
+                    nearest = d;
+                    nearest_index = m;
+                }
+            }
+            result[row] = nearest_index;
         }
     });
 }

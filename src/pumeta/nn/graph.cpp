@@ -84,8 +84,38 @@ inline uint32_t ordered_bits(float value) {
     return (bits & 0x80000000u) ? ~bits : (bits | 0x80000000u);
 }
 
-// The k smallest scores of each row of [R,N] (ties by index), sorted: a selection and a sort
-// of k per row, several times faster on the CPU than a general top-k for k << N.
+// Moves the k smallest of `keys` (distinct, totally ordered) to its front, sorted. A threshold
+// estimated from a sorted sample of every 8th key lets one branch-free pass keep only about
+// k + 16 candidates, which are then sorted. For k = 20..40 of 256 this is about twice as fast
+// as ATen's top-k, a heap (partial_sort) or nth_element + sort, whose branches mispredict.
+// Falls back to nth_element when the estimate is too low.
+template <typename Key>
+void smallest_k_to_front(std::vector<Key>& keys, int64_t k, std::vector<Key>& candidates,
+                         std::vector<Key>& sample) {
+    constexpr int64_t kStride = 8;
+    const int64_t n = int64_t(keys.size());
+    sample.clear();
+    for (int64_t j = 0; j < n; j += kStride) sample.push_back(keys[j]);
+    std::sort(sample.begin(), sample.end());
+    const int64_t pick =
+        std::min<int64_t>(int64_t(sample.size()) - 1, (k + kStride - 1) / kStride + 1);
+    const Key threshold = sample[pick];
+    candidates.resize(keys.size());
+    int64_t count = 0;
+    for (int64_t j = 0; j < n; ++j) {
+        candidates[count] = keys[j];
+        count += !(threshold < keys[j]);
+    }
+    if (count >= k) {
+        std::sort(candidates.begin(), candidates.begin() + count);
+        std::copy(candidates.begin(), candidates.begin() + k, keys.begin());
+    } else {
+        std::nth_element(keys.begin(), keys.begin() + (k - 1), keys.end());
+        std::sort(keys.begin(), keys.begin() + k);
+    }
+}
+
+// The k smallest scores of each row of [R,N], sorted, ties by index.
 template <typename scalar_t>
 void smallest_k_cpu(const at::Tensor& scores, int64_t k, at::Tensor& out) {
     const int64_t n = scores.size(-1);
@@ -95,7 +125,7 @@ void smallest_k_cpu(const at::Tensor& scores, int64_t k, at::Tensor& out) {
     using Key =
         std::conditional_t<std::is_same_v<scalar_t, float>, uint64_t, std::pair<scalar_t, int64_t>>;
     at::parallel_for(0, scores.numel() / n, 16, [&](int64_t begin, int64_t end) {
-        std::vector<Key> keys(static_cast<size_t>(n));
+        std::vector<Key> keys(static_cast<size_t>(n)), candidates, sample;
         for (int64_t row = begin; row < end; ++row) {
             const scalar_t* values = s + row * n;
             for (int64_t j = 0; j < n; ++j) {
@@ -104,8 +134,7 @@ void smallest_k_cpu(const at::Tensor& scores, int64_t k, at::Tensor& out) {
                 else
                     keys[j] = {values[j], j};
             }
-            std::nth_element(keys.begin(), keys.begin() + (k - 1), keys.end());
-            std::sort(keys.begin(), keys.begin() + k);
+            smallest_k_to_front(keys, k, candidates, sample);
             for (int64_t j = 0; j < k; ++j) {
                 if constexpr (std::is_same_v<scalar_t, float>)
                     result[row * k + j] = int64_t(keys[j] & 0xffffffffu);

@@ -45,6 +45,7 @@ TrainConfig TrainConfig::from_json(const nlohmann::json& j) {
         else if (key == "val_patches") c.val_patches = value;
         else if (key == "checkpoint_every") c.checkpoint_every = value;
         else if (key == "seed") c.seed = value;
+        else if (key == "distributed") c.distributed = DistributedConfig::from_json(value);
         else if (key == "comment") continue;
         else throw_input_error("train config", "unknown field '{}'", key);
     }
@@ -52,6 +53,9 @@ TrainConfig TrainConfig::from_json(const nlohmann::json& j) {
     if (c.train_data.empty()) throw_input_error("train config", "'train_data' is required");
     if (c.batch_size < 1 || c.steps < 0 || c.lr <= 0)
         throw_input_error("train config", "batch_size, steps and lr must be positive");
+    if (c.batch_size % c.distributed.world_size != 0)
+        throw_input_error("train config", "batch_size {} does not split evenly over {} processes",
+                          c.batch_size, c.distributed.world_size);
     parse_input_sampler(c.sampler);
     return c;
 }
@@ -65,7 +69,7 @@ nlohmann::json TrainConfig::to_json() const {
             {"sampler", sampler},          {"augment", augment},
             {"log_every", log_every},      {"val_every", val_every},
             {"val_patches", val_patches},  {"checkpoint_every", checkpoint_every},
-            {"seed", seed}};
+            {"seed", seed},                {"distributed", distributed.to_json()}};
 }
 
 namespace {
@@ -80,11 +84,46 @@ void append_log(const fs::path& file, const nlohmann::json& record) {
     out << record.dump() << "\n";
 }
 
+/// Validation CD on this rank's shard of the validation set, combined over all ranks.
+double distributed_validation_cd(const Backbone& model, const ValidationSet& val,
+                                 ProcessGroup& group) {
+    if (!group.enabled()) return validation_cd(model, val);
+    int64_t n = val.input.size(0);
+    Shard shard = shard_of(n, group.rank(), group.world_size());
+    double part = 0;
+    if (shard.size() > 0) {
+        ValidationSet mine{val.input.slice(0, shard.begin, shard.end),
+                           val.gt.slice(0, shard.begin, shard.end)};
+        part = validation_cd(model, mine) * static_cast<double>(shard.size()) / n;
+    }
+    return group.sum({{"cd", at::scalar_tensor(part, at::kDouble)}})["cd"].item<double>();
+}
+
+/// Averages one step over the ranks in one collective: the gradients, the buffers (running
+/// statistics each rank updated on its shard), the loss, and whether any rank wants to stop.
+void all_reduce_step(ProcessGroup& group, ParamMap& grads, ParamMap& buffers, double& loss,
+                     bool& stop) {
+    const at::Tensor& like = grads.begin()->second;
+    ParamMap packet = grads;
+    for (const auto& [name, b] : buffers) packet["buffer/" + name] = b;
+    packet["~loss"] = at::scalar_tensor(loss, like.options());
+    packet["~stop"] = at::scalar_tensor(stop ? 1 : 0, like.options());
+    ParamMap mean = group.average(packet);
+    for (auto& [name, g] : grads) g = mean.at(name);
+    at::NoGradGuard no_grad;
+    for (auto& [name, b] : buffers) b.copy_(mean.at("buffer/" + name));
+    loss = mean.at("~loss").item<double>();
+    stop = mean.at("~stop").item<double>() > 0;
+}
+
 }  // namespace
 
 TrainResult train(const TrainConfig& config, bool resume, double stop_after_seconds) {
     check_blas_speed();
-    fs::create_directories(config.run_dir);
+    ProcessGroup group(config.distributed);
+    // Rank 0 alone writes the run directory; the others only read it when resuming.
+    bool writes = group.is_main();
+    if (writes) fs::create_directories(config.run_dir);
     fs::path state_file = fs::path(config.run_dir) / "state.ckpt";
     fs::path log_file = fs::path(config.run_dir) / "log.jsonl";
 
@@ -96,13 +135,15 @@ TrainResult train(const TrainConfig& config, bool resume, double stop_after_seco
         model = std::move(state.model);
         state_info = state.info;
         optimizer_state = std::move(state.optimizer);
-        spdlog::info("train: resuming {} at step {}", config.run_dir,
-                     state_info.value("step", int64_t{0}));
+        if (writes)
+            spdlog::info("train: resuming {} at step {}", config.run_dir,
+                         state_info.value("step", int64_t{0}));
     } else {
-        if (resume) spdlog::warn("train: no state in {}; starting from scratch", config.run_dir);
+        if (resume && writes)
+            spdlog::warn("train: no state in {}; starting from scratch", config.run_dir);
         if (config.backbone.is_null()) throw_input_error("train config", "'backbone' is required");
         model = make_backbone(config.backbone);
-        fs::remove(log_file);
+        if (writes) fs::remove(log_file);
     }
     PatchSet train_set = load_patch_set(config.train_data);
     if (train_set.ratio != model->ratio())
@@ -113,6 +154,8 @@ TrainResult train(const TrainConfig& config, bool resume, double stop_after_seco
     loader_options.sampler = parse_input_sampler(config.sampler);
     loader_options.augment = config.augment;
     loader_options.seed = config.seed;
+    loader_options.shard_index = group.rank();
+    loader_options.shard_count = group.world_size();
     PatchLoader loader(train_set, loader_options);
 
     std::optional<ValidationSet> val;
@@ -127,9 +170,20 @@ TrainResult train(const TrainConfig& config, bool resume, double stop_after_seco
     if (!state_info.is_null()) {
         adam.load_state(optimizer_state, state_info.at("adam"));
         step = state_info.at("step");
-        best_val = state_info.value("best_val_cd", best_val);
-        last_val = state_info.value("last_val_cd", last_val);
+        // A run without validation stores its initial infinities, which JSON writes as null.
+        for (auto [key, value] : {std::pair{"best_val_cd", &best_val}, {"last_val_cd", &last_val}})
+            if (state_info.value(key, nlohmann::json()).is_number()) *value = state_info[key];
         loader.seek(state_info.at("loader_position"));
+    }
+    {
+        ParamMap state;
+        for (auto& [name, p] : model->parameters()) state["theta/" + name] = p;
+        for (auto& [name, b] : model->buffers()) state["buffer/" + name] = b;
+        for (auto& [name, t] : adam.state()) state["adam/" + name] = t;
+        start_in_sync(
+            group,
+            {{"step", step}, {"loader_position", loader.position()}, {"adam_steps", adam.steps()}},
+            state);
     }
     nlohmann::json extra = {{"train_config", config.to_json()}, {"sampler", config.sampler}};
 
@@ -151,7 +205,8 @@ TrainResult train(const TrainConfig& config, bool resume, double stop_after_seco
     auto elapsed = [&] {
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     };
-    ProgressBar progress(config.steps, "train");
+    std::optional<ProgressBar> progress;
+    if (writes) progress.emplace(config.steps, "train");
     double loss_sum = 0;
     int64_t loss_count = 0, first_step = step;
     while (step < config.steps) {
@@ -159,15 +214,23 @@ TrainResult train(const TrainConfig& config, bool resume, double stop_after_seco
         adam.set_lr(learning_rate(config, step));
         model->update_buffers(batch.input, model->parameters());
         at::Tensor loss = model->loss(batch.input, batch.gt, model->parameters(), step);
-        adam.step(gradients(loss, model->parameters()));
-        ++step;
+        ParamMap grads = gradients(loss, model->parameters());
         double loss_value = loss.item<double>();
+        bool stop = stop_after_seconds > 0 && elapsed() > stop_after_seconds;
+        if (group.enabled()) all_reduce_step(group, grads, model->buffers(), loss_value, stop);
+        adam.step(grads);
+        ++step;
         if (!std::isfinite(loss_value))
             throw InternalError(fmt::format("train: loss became {} at step {}", loss_value, step));
+        if (config.distributed.check_every > 0 && step % config.distributed.check_every == 0 &&
+            !group.identical(model->parameters()))
+            throw InternalError(
+                fmt::format("train: the ranks' parameters differ after step {}", step));
         loss_sum += loss_value;
         ++loss_count;
-        progress.update(step, fmt::format("loss {:.3e} val {:.3e}", loss_value, last_val));
-        if (step % config.log_every == 0) {
+        if (progress)
+            progress->update(step, fmt::format("loss {:.3e} val {:.3e}", loss_value, last_val));
+        if (writes && step % config.log_every == 0) {
             double seconds = elapsed();
             append_log(log_file, {{"step", step},
                                   {"loss", loss_sum / loss_count},
@@ -177,30 +240,35 @@ TrainResult train(const TrainConfig& config, bool resume, double stop_after_seco
             loss_sum = 0;
             loss_count = 0;
         }
-        bool stop = stop_after_seconds > 0 && elapsed() > stop_after_seconds;
         if (val && (step % config.val_every == 0 || step == config.steps || stop)) {
-            last_val = validation_cd(*model, *val);
+            last_val = distributed_validation_cd(*model, *val, group);
             bool improved = last_val < best_val;
-            if (improved) {
-                best_val = last_val;
+            if (improved) best_val = last_val;
+            if (improved && writes) {
                 nlohmann::json best_extra = extra;
                 best_extra["step"] = step;
                 best_extra["val_cd"] = last_val;
                 save_checkpoint((fs::path(config.run_dir) / "best.pt").string(), *model,
                                 best_extra);
             }
-            append_log(log_file, {{"step", step}, {"val_cd", last_val}, {"best", improved},
-                                  {"input_cd", val->input_cd}, {"seconds", elapsed()}});
-            spdlog::info("train: step {} val CD {:.4e} (best {:.4e}, input {:.4e})", step,
-                         last_val, best_val, val->input_cd);
+            if (writes) {
+                append_log(log_file, {{"step", step}, {"val_cd", last_val}, {"best", improved},
+                                      {"input_cd", val->input_cd}, {"seconds", elapsed()}});
+                spdlog::info("train: step {} val CD {:.4e} (best {:.4e}, input {:.4e})", step,
+                             last_val, best_val, val->input_cd);
+            }
         }
-        if (step % config.checkpoint_every == 0 || step == config.steps || stop) save_state();
+        if (writes && (step % config.checkpoint_every == 0 || step == config.steps || stop))
+            save_state();
         if (stop) {
-            spdlog::info("train: time limit reached at step {}; continue with --resume", step);
+            if (writes)
+                spdlog::info("train: time limit reached at step {}; continue with --resume", step);
             break;
         }
     }
-    progress.finish();
+    if (progress) progress->finish();
+    // Every rank returns only once rank 0's last checkpoint is on disk.
+    group.barrier();
     return {step, best_val, last_val};
 }
 

@@ -4,12 +4,20 @@
 //   model.pt     latest model (a plain checkpoint usable by `pumeta upsample`)
 //   best.pt      model with the lowest validation CD so far
 //   log.jsonl    one JSON object per logged step and per validation
+//
+// Data-parallel over W processes (config.distributed): every rank takes batch_size/W patches
+// of each batch and the gradients are averaged before the Adam step, which equals one process
+// with the whole batch up to float summation order for backbones without batch norm (with
+// it, each rank normalises by its own shard's statistics, as DDP without SyncBatchNorm;
+// running statistics are averaged over the ranks). Rank 0 alone writes the run directory.
 #pragma once
 
 #include <nlohmann/json.hpp>
 
 #include <cstdint>
 #include <string>
+
+#include "pumeta/distributed/process_group.h"
 
 namespace pumeta {
 
@@ -36,6 +44,8 @@ struct TrainConfig {
     int64_t val_patches = 256;
     int64_t checkpoint_every = 500;
     uint64_t seed = 1;
+    /// Processes and rendezvous; batch_size must be a multiple of the world size.
+    DistributedConfig distributed;
 
     /// Fields not given keep their defaults; unknown fields are an InputError.
     static TrainConfig from_json(const nlohmann::json& j);

@@ -96,9 +96,12 @@ void expect_close(const at::Tensor& a, const at::Tensor& b, double tolerance = 1
 
 TEST(SparseConv, StrideOneMatchesDenseConv3dForKernelsAndDilations) {
     auto set = occupied_grid(-4, 10, 1, 1);
-    SparseTensor x = random_features(set, 3, 2);
-    for (auto [k, dilation] : {std::pair{1, 1}, std::pair{3, 1}, std::pair{5, 1}, std::pair{3, 2}}) {
-        ParamMap params = conv_params(3, 4, k, /*bias=*/true, 3);
+    // 3 -> 4 channels moves rows element-wise, 24 -> 20 row by row (see sparse_conv.cpp).
+    for (auto [k, dilation, in, out] : {std::tuple{1, 1, 3, 4}, std::tuple{3, 1, 3, 4},
+                                         std::tuple{5, 1, 3, 4}, std::tuple{3, 2, 3, 4},
+                                         std::tuple{3, 1, 24, 20}, std::tuple{5, 2, 24, 20}}) {
+        SparseTensor x = random_features(set, in, 2);
+        ParamMap params = conv_params(in, out, k, /*bias=*/true, 3);
         SparseTensor y = sparse_conv(x, params, "c", {k, 1, dilation});
         EXPECT_EQ(y.coords(), set);
         const int64_t pad = dilation * (k - 1) / 2;
@@ -175,9 +178,10 @@ std::vector<Case> derivative_cases() {
     auto coarse = fine->coarser(2);
     std::vector<Case> cases;
     auto add = [&](const char* name, int64_t k, const CoordinateSetPtr& in_set,
-                   std::function<SparseTensor(const SparseTensor&, const ParamMap&)> f) {
-        ParamMap params = conv_params(2, 2, k, false, 21, at::kDouble);
-        SparseTensor x = random_features(in_set, 2, 22, at::kDouble);
+                   std::function<SparseTensor(const SparseTensor&, const ParamMap&)> f,
+                   int64_t channels = 2) {
+        ParamMap params = conv_params(channels, channels, k, false, 21, at::kDouble);
+        SparseTensor x = random_features(in_set, channels, 22, at::kDouble);
         Op op = [f, in_set](const at::Tensor& w, const at::Tensor& feats) {
             return f(SparseTensor(in_set, feats), ParamMap{{"c.weight", w}}).features();
         };
@@ -194,6 +198,16 @@ std::vector<Case> derivative_cases() {
     });
     add("generative", 3, coarse, [](const SparseTensor& x, const ParamMap& p) {
         return sparse_conv_generative(x, p, "c", 3);
+    });
+    add(
+        "wide", 3, fine,
+        [](const SparseTensor& x, const ParamMap& p) { return sparse_conv(x, p, "c", {3, 1, 1}); },
+        16);
+    // The per-offset path that large maps take.
+    add("per-offset", 3, fine, [](const SparseTensor& x, const ParamMap& p) {
+        KernelMap map = *x.coords()->conv_map(3, 1);
+        map.batched_offsets = map.batched_in = map.batched_out = at::Tensor();
+        return x.with_features(apply_kernel_map(x.features(), p.at("c.weight"), {}, map));
     });
     return cases;
 }
@@ -245,6 +259,34 @@ TEST(SparseConv, SecondDerivativesMatchFiniteDifferences) {
         double numeric = (plus - minus) / (2 * eps);
         EXPECT_GT(std::abs(numeric), 1e-6) << c.name << ": degenerate second derivative";
         EXPECT_NEAR(analytic, numeric, 1e-6 * std::max(1.0, std::abs(numeric))) << c.name;
+    }
+}
+
+TEST(SparseConv, BatchedAndPerOffsetPathsAgree) {
+    auto fine = occupied_grid(-4, 10, 1, 60);
+    auto coarse = fine->coarser(2);
+    const std::pair<const char*, std::shared_ptr<const KernelMap>> maps[] = {
+        {"conv", fine->conv_map(3, 1)},
+        {"dilated", fine->conv_map(3, 2)},
+        {"down", fine->down_map(3, 2)},
+        {"transposed", std::make_shared<const KernelMap>(fine->down_map(3, 2)->transposed())},
+        {"generative", coarse->generated(5, 2).map}};
+    for (const auto& [name, map] : maps) {
+        ASSERT_TRUE(map->batched_offsets.defined()) << name << ": small maps run batched";
+        KernelMap loop = *map;
+        loop.batched_offsets = loop.batched_in = loop.batched_out = at::Tensor();
+        at::manual_seed(61);
+        at::Tensor x = at::randn({map->input_size, 3}).requires_grad_(true);
+        at::Tensor w = at::randn({map->kernel_volume(), 3, 2}).requires_grad_(true);
+        at::Tensor b = at::randn({2});
+        at::Tensor batched = apply_kernel_map(x, w, b, *map);
+        at::Tensor looped = apply_kernel_map(x, w, b, loop);
+        expect_close(batched, looped, 1e-5);
+        at::Tensor r = at::randn_like(batched);
+        auto g1 = torch::autograd::grad({(batched * r).sum()}, {x, w});
+        auto g2 = torch::autograd::grad({(looped * r).sum()}, {x, w});
+        expect_close(g1[0], g2[0], 1e-5);
+        expect_close(g1[1], g2[1], 1e-5);
     }
 }
 

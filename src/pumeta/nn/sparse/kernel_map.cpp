@@ -70,7 +70,32 @@ KernelMap KernelMap::transposed() const {
     t.identity_offset = identity_offset;
     t.input_size = output_size;
     t.output_size = input_size;
+    // The padding rows swap with the sizes, so the padded pairs transpose too.
+    t.batched_offsets = batched_offsets;
+    t.batched_in = batched_out;
+    t.batched_out = batched_in;
     return t;
+}
+
+void KernelMap::prepare_batched() {
+    std::vector<int64_t> offsets;
+    int64_t longest = 0, total = 0;
+    for (int64_t k = 0; k < kernel_volume(); ++k) {
+        if (k == identity_offset || in[k].numel() == 0) continue;
+        offsets.push_back(k);
+        longest = std::max(longest, in[k].numel());
+        total += in[k].numel();
+    }
+    const int64_t padded = longest * int64_t(offsets.size());
+    if (offsets.empty() || (padded >= (1 << 15) && 4 * padded > 5 * total)) return;
+    batched_offsets = to_index_tensor(offsets);
+    batched_in = at::full({padded}, input_size, at::kLong);
+    batched_out = at::full({padded}, output_size, at::kLong);
+    for (size_t j = 0; j < offsets.size(); ++j) {
+        const int64_t k = offsets[j], count = in[k].numel();
+        batched_in.narrow(0, int64_t(j) * longest, count).copy_(in[k]);
+        batched_out.narrow(0, int64_t(j) * longest, count).copy_(out[k]);
+    }
 }
 
 KernelMap build_conv_map(const CoordinateSet& set, int64_t kernel_size, int64_t dilation) {
@@ -81,6 +106,7 @@ KernelMap build_conv_map(const CoordinateSet& set, int64_t kernel_size, int64_t 
         append_offset(map, set, set.coords(),
                       {offset[0] * step, offset[1] * step, offset[2] * step});
     map.identity_offset = map.kernel_volume() / 2;
+    map.prepare_batched();
     return map;
 }
 
@@ -93,6 +119,7 @@ KernelMap build_down_map(const CoordinateSet& fine, const CoordinateSet& coarse,
     for (const auto& offset : kernel_offsets(kernel_size))
         append_offset(map, fine, coarse.coords(),
                       {offset[0] * step, offset[1] * step, offset[2] * step});
+    map.prepare_batched();
     return map;
 }
 
@@ -134,6 +161,7 @@ GeneratedCoordinates generate_coordinates(const CoordinateSet& coarse, int64_t k
     }
     result.map.input_size = count;
     result.map.output_size = result.coords.size(0);
+    result.map.prepare_batched();
     return result;
 }
 

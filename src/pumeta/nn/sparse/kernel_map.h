@@ -33,12 +33,22 @@ struct KernelMap {
     int64_t identity_offset = -1;
     int64_t input_size = 0;
     int64_t output_size = 0;
+    /// The non-identity offsets padded to one length P, so that a convolution runs them as one
+    /// batched GEMM rather than one GEMM per offset (per-op overhead dominates small maps):
+    /// offsets int64 [K'], in and out int64 [K'·P] whose padding reads row input_size (a zero
+    /// row) and writes row output_size (dropped). Undefined where padding would waste too much.
+    at::Tensor batched_offsets;
+    at::Tensor batched_in;
+    at::Tensor batched_out;
 
     int64_t kernel_volume() const { return int64_t(in.size()); }
     /// Total number of (input, output) pairs over all offsets.
     int64_t pairs() const;
     /// The map of the transposed convolution: inputs and outputs swapped.
     KernelMap transposed() const;
+    /// Fills the batched_* fields when the padded pairs are few (under 2^15) or at most 25%
+    /// more than the real ones. Called by the builders below.
+    void prepare_batched();
 };
 
 /// Stride-1 map of `set` onto itself: input = output + offset·dilation·stride.

@@ -1,0 +1,275 @@
+// PU-Dense: parameter counts at the paper width, configs, exact output counts, the BCE loss
+// against a brute-force labelling, batch-norm statistics, overfitting one cloud, and the
+// second-order MAML meta-gradient through the sparse engine against finite differences.
+#include "pumeta/models/pudense.h"
+
+#include <ATen/ATen.h>
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <set>
+
+#include "pumeta/core/error.h"
+#include "pumeta/meta/maml.h"
+#include "pumeta/nn/adam.h"
+#include "pumeta/nn/gradients.h"
+#include "pumeta/nn/sparse/voxelize.h"
+
+namespace pumeta {
+namespace {
+
+/// A gently curved sheet of n points per element in [-1,1]², [B,n,3].
+at::Tensor sheet(int64_t batch, int64_t n, uint64_t seed, at::ScalarType type = at::kFloat) {
+    at::Generator gen = at::detail::createCPUGenerator(seed);
+    at::Tensor uv = at::rand({batch, n, 2}, gen, at::TensorOptions().dtype(type)) * 2 - 1;
+    at::Tensor u = uv.select(2, 0), v = uv.select(2, 1);
+    return at::stack({u, v, 0.3 * at::sin(2 * u) * at::cos(v)}, -1);
+}
+
+nlohmann::json tiny_config(int64_t ratio = 4, double resolution = 4) {
+    return {{"backbone", "pudense"},   {"ratio", ratio},          {"channels", {4, 4, 8, 8, 8}},
+            {"resolution", resolution}, {"downsampler", "random"}, {"seed", 3}};
+}
+
+std::unique_ptr<PuDense> tiny_model(int64_t ratio = 4, bool double_precision = false,
+                                    double resolution = 4) {
+    auto model =
+        std::make_unique<PuDense>(PuDenseOptions::from_json(tiny_config(ratio, resolution)));
+    if (double_precision) {
+        for (auto& [name, p] : model->parameters())
+            p = p.detach().to(at::kDouble).requires_grad_(true);
+        for (auto& [name, b] : model->buffers()) b = b.to(at::kDouble);
+    }
+    return model;
+}
+
+TEST(PuDense, ParameterCountsAtThePaperWidthAndPresets) {
+    EXPECT_EQ(count_parameters(
+                  PuDense(PuDenseOptions::from_json(nlohmann::json::object())).parameters()),
+              13172441);
+    EXPECT_EQ(count_parameters(
+                  PuDense(PuDenseOptions::from_json({{"last_kernel_size", 7}})).parameters()),
+              13842137);
+    EXPECT_EQ(count_parameters(
+                  PuDense(PuDenseOptions::from_json({{"preset", "compact"}})).parameters()),
+              1603757);
+}
+
+TEST(PuDense, ConfigRoundTripsAndRejectsInvalidFields) {
+    PuDenseOptions options = PuDenseOptions::from_json(
+        {{"preset", "compact"}, {"ratio", 4}, {"resolution", 16}, {"seed", 7}});
+    EXPECT_EQ(options.channels, (std::vector<int64_t>{16, 16, 32, 64, 64}));
+    nlohmann::json j = options.to_json();
+    EXPECT_EQ(PuDenseOptions::from_json(j).to_json(), j);
+    // Explicit channels win over the preset, whatever the key order.
+    EXPECT_EQ(PuDenseOptions::from_json({{"channels", {8, 8, 8, 8, 8}}, {"preset", "compact"}})
+                  .channels,
+              (std::vector<int64_t>{8, 8, 8, 8, 8}));
+    auto model = make_backbone(j);
+    EXPECT_EQ(model->name(), "pudense");
+    EXPECT_EQ(model->ratio(), 4);
+    for (nlohmann::json bad :
+         {nlohmann::json{{"colour", 1}}, nlohmann::json{{"preset", "huge"}},
+          nlohmann::json{{"channels", {8, 8, 8}}}, nlohmann::json{{"channels", {8, 16, 16, 16, 16}}},
+          nlohmann::json{{"channels", {6, 6, 8, 8, 8}}}, nlohmann::json{{"last_kernel_size", 4}},
+          nlohmann::json{{"resolution", 0}}, nlohmann::json{{"downsampler", "magic"}}})
+        EXPECT_THROW(PuDenseOptions::from_json(bad), InputError) << bad.dump();
+}
+
+TEST(PuDense, UpsampleGivesExactlyRNVoxelCentresNearTheInput) {
+    at::Tensor x = sheet(2, 40, 1);
+    // r = 400 asks for more voxels than the generative layer proposes: they repeat.
+    for (int64_t ratio : {2, 4, 8, 400}) {
+        auto model = tiny_model(ratio);
+        at::Tensor y = model->upsample(x);
+        ASSERT_EQ(y.sizes(), (std::vector<int64_t>{2, 40 * ratio, 3})) << "r = " << ratio;
+        const double h = model->voxel_size();
+        // Centres of voxels: (i + 0.5)·h.
+        at::Tensor cells = y / h - 0.5;
+        EXPECT_LT((cells - cells.round()).abs().max().item<double>(), 1e-4);
+        // A generated voxel is within 2 voxels of a stride-2 site, itself within 1 voxel of an
+        // input voxel: at most 3.5 h from some input point (L∞).
+        for (int64_t b = 0; b < 2; ++b) {
+            at::Tensor gap = (y[b].unsqueeze(1) - x[b].unsqueeze(0)).abs().amax(2).amin(1);
+            EXPECT_LE(gap.max().item<double>(), 3.5 * h + 1e-5) << "r = " << ratio;
+        }
+        if (ratio <= 8)  // enough candidates: all distinct
+            EXPECT_EQ(std::get<0>(at::unique_dim(y[0], 0)).size(0), 40 * ratio);
+    }
+}
+
+TEST(PuDense, LossIsBceAgainstMembershipInTheTargetVoxels) {
+    auto model = tiny_model();
+    at::Tensor target = sheet(2, 64, 2);
+    at::Tensor input = target.narrow(1, 0, 16);
+    at::Tensor loss = model->loss(input, target, model->parameters());
+
+    Occupancy occ = model->occupancy(model->voxels(input), model->parameters(), {});
+    const double h = model->voxel_size();
+    std::set<std::array<int64_t, 4>> truth;
+    for (int64_t b = 0; b < 2; ++b)
+        for (int64_t i = 0; i < 64; ++i)
+            truth.insert({b, int64_t(std::floor(target[b][i][0].item<double>() / h)),
+                          int64_t(std::floor(target[b][i][1].item<double>() / h)),
+                          int64_t(std::floor(target[b][i][2].item<double>() / h))});
+    at::Tensor sites = occ.sites->coords().to(at::kLong);
+    double total = 0;
+    int64_t positives = 0;
+    for (int64_t g = 0; g < sites.size(0); ++g) {
+        bool member = truth.count({sites[g][0].item<int64_t>(), sites[g][1].item<int64_t>(),
+                                   sites[g][2].item<int64_t>(), sites[g][3].item<int64_t>()});
+        positives += member;
+        double z = occ.logits[g].item<double>();
+        total += std::log1p(std::exp(-std::abs(z))) + std::max(z, 0.0) - (member ? z : 0.0);
+    }
+    EXPECT_GT(positives, 0);
+    EXPECT_NEAR(loss.item<double>(), total / double(sites.size(0)), 1e-5);
+}
+
+TEST(PuDense, LossUsesBatchStatisticsAndOnlyUpdateBuffersMovesRunningOnes) {
+    auto model = tiny_model();
+    at::Tensor target = sheet(1, 64, 3);
+    at::Tensor input = target.narrow(1, 0, 16);
+    double before = model->loss(input, target, model->parameters()).item<double>();
+    ParamMap saved;
+    for (auto& [name, b] : model->buffers()) saved[name] = b.clone();
+    at::Tensor y_before = model->upsample(input);
+    for (auto& [name, b] : model->buffers()) EXPECT_TRUE(b.equal(saved[name])) << name;
+
+    model->update_buffers(input, model->parameters());
+    int64_t moved = 0;
+    for (auto& [name, b] : model->buffers()) moved += !b.equal(saved[name]);
+    EXPECT_EQ(moved, int64_t(saved.size()));
+    // The loss ignores running statistics; inference uses them.
+    EXPECT_DOUBLE_EQ(model->loss(input, target, model->parameters()).item<double>(), before);
+    EXPECT_FALSE(model->upsample(input).equal(y_before));
+}
+
+TEST(PuDense, RepeatedCallsOnTheSameInputReuseItsKernelMaps) {
+    auto model = tiny_model();
+    at::Tensor target = sheet(1, 64, 4);
+    at::Tensor input = target.narrow(1, 0, 16).clone();
+    CoordinateSetPtr voxels = model->voxels(input);
+    model->loss(input, target, model->parameters());
+    const int64_t built = voxels->kernel_maps_built();
+    EXPECT_GT(built, 0);
+    model->loss(input.clone(), target, model->parameters());  // equal content, new tensor
+    model->update_buffers(input, model->parameters());
+    EXPECT_EQ(model->voxels(input.clone()), voxels);
+    EXPECT_EQ(voxels->kernel_maps_built(), built);
+}
+
+/// Fraction of the target's voxels among the voxels of the upsampled points (rN of them, at
+/// least as many as the target's voxels, so a perfect model scores 1).
+double voxel_recall(const PuDense& model, const at::Tensor& input, const at::Tensor& target) {
+    CoordinateSetPtr truth = voxelize(target, model.voxel_size());
+    CoordinateSetPtr kept = voxelize(model.upsample(input), model.voxel_size());
+    return (truth->lookup(kept->coords()) >= 0).sum().item<double>() / double(truth->size());
+}
+
+TEST(PuDense, OverfitsOneSmallCloud) {
+    nlohmann::json config = tiny_config(4);
+    config["batch_stats_at_inference"] = true;  // no running statistics are trained here
+    PuDense model(PuDenseOptions::from_json(config));
+    at::Tensor target = sheet(1, 96, 5);
+    at::Tensor input = target.narrow(1, 0, 24);
+    ParamMap& params = model.parameters();
+    const double recall_before = voxel_recall(model, input, target);
+    AdamOptions adam_options;
+    adam_options.lr = 2e-2;
+    Adam adam(params, adam_options);
+    double first = 0, last = 0;
+    for (int step = 0; step < 30; ++step) {
+        at::Tensor loss = model.loss(input, target, params);
+        (step == 0 ? first : last) = loss.item<double>();
+        adam.step(gradients(loss, params));
+    }
+    EXPECT_LT(last, 0.5 * first) << "first " << first << ", last " << last;
+    // Not just the base rate: the kept voxels become the target's.
+    const double recall_after = voxel_recall(model, input, target);
+    EXPECT_GT(recall_after, 0.9) << "before " << recall_before;
+    EXPECT_GT(recall_after, recall_before + 0.2);
+}
+
+TEST(PuDense, DownsamplerKeepsAUniformRandomSubset) {
+    auto model = tiny_model(4);
+    at::Tensor dense = sheet(2, 64, 6);
+    at::Tensor sparse = model->downsample(dense, 9);
+    ASSERT_EQ(sparse.sizes(), (std::vector<int64_t>{2, 16, 3}));
+    for (int64_t b = 0; b < 2; ++b) {
+        at::Tensor d = (sparse[b].unsqueeze(1) - dense[b].unsqueeze(0)).abs().sum(2);
+        EXPECT_EQ(d.amin(1).max().item<double>(), 0.0);  // every point is an input point
+    }
+    EXPECT_TRUE(model->downsample(dense, 9).equal(sparse));
+}
+
+/// J(θ) = mean_n L(F_adapt(θ)(X_n), Y_n), without graphs (as tests/meta/maml.cpp).
+double meta_objective(const Backbone& model, const ParamMap& theta, const at::Tensor& x,
+                      const at::Tensor& y, const MetaOptions& options, uint64_t seed) {
+    double total = 0;
+    for (int64_t i = 0; i < x.size(0); ++i) {
+        at::Tensor xi = x.slice(0, i, i + 1), yi = y.slice(0, i, i + 1);
+        ParamMap fast = adapt(model, theta, model.downsample(xi, seed + i), xi, options, {}, false);
+        at::NoGradGuard no_grad;
+        total += model.loss(xi, yi, fast).item<double>() / double(x.size(0));
+    }
+    return total;
+}
+
+TEST(PuDense, SecondOrderMetaGradientMatchesFiniteDifferences) {
+    auto model = tiny_model(4, true, /*resolution=*/16);
+    // A generic point: at initialisation every beta is 0, and a batch norm whose sites all
+    // carry the same value (the pyramid's pooled branch on one cloud) outputs exactly beta,
+    // right on the ReLU's kink, where finite differences are one-sided.
+    at::manual_seed(1);
+    for (auto& [name, p] : model->parameters())
+        if (name.size() > 5 && name.compare(name.size() - 5, 5, ".beta") == 0)
+            p = (p.detach() + 0.1 * at::randn_like(p)).requires_grad_(true);
+    at::Tensor y = sheet(1, 256, 7, at::kDouble);
+    at::Tensor x = y.slice(1, 0, 256, 4).contiguous();
+    MetaOptions options;
+    options.inner_steps = 2;
+    options.inner_lr = 0.01;
+    MetaStepResult result = meta_gradient(*model, x, y, options, {}, 11);
+    EXPECT_LT(result.inner_loss_after, result.inner_loss_before);
+
+    at::manual_seed(0);
+    double analytic = 0;
+    ParamMap direction;
+    for (auto& [name, p] : model->parameters()) {
+        direction[name] = at::randn_like(p.detach());
+        analytic += (result.grads.at(name) * direction[name]).sum().item<double>();
+    }
+    // J along θ + t·d is smooth only piecewise: the inner gradient jumps wherever one of the
+    // network's many ReLUs changes sign, about every 1e-8 here. So: tiny steps, and the
+    // median of consecutive differences, which a jump between two samples cannot move.
+    const double h = 1e-9;
+    std::vector<double> values, slopes;
+    for (int64_t k = -2; k <= 2; ++k) {
+        ParamMap shifted;
+        for (auto& [name, p] : model->parameters())
+            shifted[name] = (p.detach() + double(k) * h * direction[name]).requires_grad_(true);
+        values.push_back(meta_objective(*model, shifted, x, y, options, 11));
+        if (k > -2) slopes.push_back((values.back() - values[values.size() - 2]) / h);
+    }
+    std::sort(slopes.begin(), slopes.end());
+    double numeric = 0.5 * (slopes[1] + slopes[2]);
+    ASSERT_GT(std::abs(numeric), 1e-8);
+    EXPECT_LT(std::abs(analytic - numeric) / std::abs(numeric), 1e-4)
+        << "analytic " << analytic << ", numeric " << numeric;
+
+    // The first-order variant differs: the inner gradients' own derivatives matter.
+    options.first_order = true;
+    MetaStepResult first = meta_gradient(*model, x, y, options, {}, 11);
+    double difference = 0, scale = 0;
+    for (auto& [name, g] : result.grads) {
+        difference += (first.grads.at(name) - g).abs().sum().item<double>();
+        scale += g.abs().sum().item<double>();
+    }
+    EXPECT_GT(difference, 1e-3 * scale);
+}
+
+}  // namespace
+}  // namespace pumeta
