@@ -30,8 +30,8 @@ const PuDense& model(const std::string& preset) {
 }
 
 void report(benchmark::State& state) {
-    state.counters["patches/s"] = benchmark::Counter(double(kBatch),
-                                                     benchmark::Counter::kIsIterationInvariantRate);
+    state.counters["patches/s"] =
+        benchmark::Counter(double(kBatch), benchmark::Counter::kIsIterationInvariantRate);
 }
 
 void loss_and_gradients(benchmark::State& state, const std::string& preset) {

@@ -1,6 +1,8 @@
 // The sparse engine's convolution: a 3³ convolution 64 -> 64 on about 100k active sites of a
 // voxelised sphere (a surface, as PU-Dense's voxels are), against a dense GEMM doing the same
 // FLOPs. Compare the "GFLOP/s" counters: useful FLOPs = 2 · pairs · 64 · 64.
+#include "pumeta/nn/sparse/sparse_conv.h"
+
 #include <ATen/ATen.h>
 #include <ATen/Parallel.h>
 #include <benchmark/benchmark.h>
@@ -8,8 +10,6 @@
 
 #include <cmath>
 #include <random>
-
-#include "pumeta/nn/sparse/sparse_conv.h"
 
 namespace {
 
@@ -101,8 +101,8 @@ void BM_KernelMapBuild(benchmark::State& state) {
         CoordinateSetPtr fresh = CoordinateSet::create(f.sites->coords(), 1);
         benchmark::DoNotOptimize(fresh->conv_map(3, 1));
     }
-    state.counters["sites/s"] = benchmark::Counter(double(f.sites->size()),
-                                                   benchmark::Counter::kIsIterationInvariantRate);
+    state.counters["sites/s"] =
+        benchmark::Counter(double(f.sites->size()), benchmark::Counter::kIsIterationInvariantRate);
 }
 
 BENCHMARK(BM_SparseConv3x3x3Forward)->Unit(benchmark::kMillisecond)->UseRealTime();

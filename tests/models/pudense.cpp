@@ -29,7 +29,7 @@ at::Tensor sheet(int64_t batch, int64_t n, uint64_t seed, at::ScalarType type = 
 }
 
 nlohmann::json tiny_config(int64_t ratio = 4, double resolution = 4) {
-    return {{"backbone", "pudense"},   {"ratio", ratio},          {"channels", {4, 4, 8, 8, 8}},
+    return {{"backbone", "pudense"},    {"ratio", ratio},          {"channels", {4, 4, 8, 8, 8}},
             {"resolution", resolution}, {"downsampler", "random"}, {"seed", 3}};
 }
 
@@ -46,15 +46,15 @@ std::unique_ptr<PuDense> tiny_model(int64_t ratio = 4, bool double_precision = f
 }
 
 TEST(PuDense, ParameterCountsAtThePaperWidthAndPresets) {
-    EXPECT_EQ(count_parameters(
-                  PuDense(PuDenseOptions::from_json(nlohmann::json::object())).parameters()),
-              13172441);
+    EXPECT_EQ(
+        count_parameters(PuDense(PuDenseOptions::from_json(nlohmann::json::object())).parameters()),
+        13172441);
     EXPECT_EQ(count_parameters(
                   PuDense(PuDenseOptions::from_json({{"last_kernel_size", 7}})).parameters()),
               13842137);
-    EXPECT_EQ(count_parameters(
-                  PuDense(PuDenseOptions::from_json({{"preset", "compact"}})).parameters()),
-              1603757);
+    EXPECT_EQ(
+        count_parameters(PuDense(PuDenseOptions::from_json({{"preset", "compact"}})).parameters()),
+        1603757);
 }
 
 TEST(PuDense, ConfigRoundTripsAndRejectsInvalidFields) {
@@ -64,15 +64,16 @@ TEST(PuDense, ConfigRoundTripsAndRejectsInvalidFields) {
     nlohmann::json j = options.to_json();
     EXPECT_EQ(PuDenseOptions::from_json(j).to_json(), j);
     // Explicit channels win over the preset, whatever the key order.
-    EXPECT_EQ(PuDenseOptions::from_json({{"channels", {8, 8, 8, 8, 8}}, {"preset", "compact"}})
-                  .channels,
-              (std::vector<int64_t>{8, 8, 8, 8, 8}));
+    EXPECT_EQ(
+        PuDenseOptions::from_json({{"channels", {8, 8, 8, 8, 8}}, {"preset", "compact"}}).channels,
+        (std::vector<int64_t>{8, 8, 8, 8, 8}));
     auto model = make_backbone(j);
     EXPECT_EQ(model->name(), "pudense");
     EXPECT_EQ(model->ratio(), 4);
     for (nlohmann::json bad :
          {nlohmann::json{{"colour", 1}}, nlohmann::json{{"preset", "huge"}},
-          nlohmann::json{{"channels", {8, 8, 8}}}, nlohmann::json{{"channels", {8, 16, 16, 16, 16}}},
+          nlohmann::json{{"channels", {8, 8, 8}}},
+          nlohmann::json{{"channels", {8, 16, 16, 16, 16}}},
           nlohmann::json{{"channels", {6, 6, 8, 8, 8}}}, nlohmann::json{{"last_kernel_size", 4}},
           nlohmann::json{{"resolution", 0}}, nlohmann::json{{"downsampler", "magic"}}})
         EXPECT_THROW(PuDenseOptions::from_json(bad), InputError) << bad.dump();

@@ -77,7 +77,7 @@ InferenceModel load_model(const ModelArgs& args) {
 
 void add_upsample_command(CLI::App& app) {
     struct Args {
-        std::string input, output;
+        std::string input, output, method = "network";
         bool json = false;
         ReadOptions read;
         ModelArgs model;
@@ -85,6 +85,9 @@ void add_upsample_command(CLI::App& app) {
     auto args = std::make_shared<Args>();
     CLI::App* command =
         app.add_subcommand("upsample", "upsample a point cloud (with test-time adaptation)");
+    command->add_option("--method", args->method,
+                        "network (the model) or midpoint (non-learned baseline)")
+        ->check(CLI::IsMember({"network", "midpoint"}));
     command->add_option("input", args->input, "input cloud (any readable format)")->required();
     command->add_option("-o,--output", args->output, "output cloud")->required();
     command->add_flag("--json", args->json,
@@ -92,8 +95,15 @@ void add_upsample_command(CLI::App& app) {
     add_read_options(*command, args->read);
     add_model_options(*command, args->model);
     command->callback([args] {
-        InferenceModel model = load_model(args->model);
         PointCloud cloud = read_point_cloud(args->input, args->read);
+        if (args->method == "midpoint") {
+            int64_t ratio = args->model.ratio > 0 ? args->model.ratio : 4;
+            at::Tensor points = midpoint_upsample(cloud.points, ratio);
+            write_point_cloud(args->output, {points});
+            if (args->json) print_json({{"n_in", cloud.size()}, {"n_out", points.size(0)}});
+            return;
+        }
+        InferenceModel model = load_model(args->model);
         UpsampleOptions options = make_upsample_options(args->model, model);
         UpsampleResult result = upsample_cloud(*model.backbone, cloud.points, options);
         write_point_cloud(args->output, {result.points});

@@ -12,8 +12,10 @@
 #include <chrono>
 #include <cstdlib>
 #include <map>
+#include <string_view>
 
 #include "pumeta/core/error.h"
+#include "pumeta/core/hash.h"
 
 namespace pumeta {
 
@@ -51,21 +53,20 @@ std::string first_line(const std::exception& e) {
     return message.substr(0, message.find('\n'));
 }
 
-/// FNV-1a over names, shapes and raw bytes (on the CPU): equal states hash equal, and a
+/// A hash of names, shapes and raw bytes (copied to the CPU): equal states hash equal, and a
 /// difference anywhere changes the hash with overwhelming probability.
 uint64_t fingerprint(const ParamMap& tensors) {
-    uint64_t h = 0xcbf29ce484222325ull;
-    auto mix = [&h](const void* data, size_t bytes) {
-        const auto* p = static_cast<const unsigned char*>(data);
-        for (size_t i = 0; i < bytes; ++i) h = (h ^ p[i]) * 0x100000001b3ull;
+    auto bytes = [](const void* data, size_t size) {
+        return std::string_view(static_cast<const char*>(data), size);
     };
+    std::vector<uint64_t> parts;
     for (const auto& [name, t] : tensors) {
-        mix(name.data(), name.size());
-        for (int64_t size : t.sizes()) mix(&size, sizeof size);
         at::Tensor cpu = t.detach().to(at::kCPU).contiguous();
-        mix(cpu.data_ptr(), cpu.nbytes());
+        parts.push_back(stable_hash(name));
+        parts.push_back(stable_hash(bytes(t.sizes().data(), t.sizes().size() * sizeof(int64_t))));
+        parts.push_back(stable_hash(bytes(cpu.data_ptr(), cpu.nbytes())));
     }
-    return h;
+    return stable_hash(bytes(parts.data(), parts.size() * sizeof(uint64_t)));
 }
 
 }  // namespace

@@ -17,7 +17,9 @@ namespace pumeta {
 namespace {
 
 constexpr const char* kContext = "pudense config";
-constexpr size_t kVoxelCacheSize = 4;
+// Two inputs: MAML alternates between X↓ (inner loop) and X (outer loss), pretraining between
+// update_buffers and loss on one batch. Each entry holds its kernel maps.
+constexpr size_t kVoxelCacheSize = 2;
 
 std::vector<int64_t> preset_channels(const std::string& preset) {
     if (preset == "paper") return {32, 32, 64, 128, 256};
@@ -53,7 +55,9 @@ struct Layers {
     SparseTensor bn(const SparseTensor& x, const std::string& name) const {
         return sparse_batch_norm(x, params, name, norm);
     }
-    SparseTensor relu(const SparseTensor& x) const { return x.with_features(at::relu(x.features())); }
+    SparseTensor relu(const SparseTensor& x) const {
+        return x.with_features(at::relu(x.features()));
+    }
     /// conv → batch norm → ReLU, the unit of both blocks.
     SparseTensor unit(const SparseTensor& x, const std::string& conv_name,
                       const std::string& bn_name, int64_t kernel_size, int64_t dilation = 1) const {
@@ -74,13 +78,12 @@ struct Layers {
     /// each C→C/4; concatenated 5C/4 → 1³ → C, plus x.
     SparseTensor pyramid(const SparseTensor& x, const std::string& p) const {
         SparseTensor pooled = broadcast_to_sites(global_average_pool(x), x.coords());
-        at::Tensor branches =
-            at::cat({unit(x, p + ".aspp1", p + ".aspp1_bn", 1).features(),
-                     unit(x, p + ".aspp2", p + ".aspp2_bn", 3, 6).features(),
-                     unit(x, p + ".aspp3", p + ".aspp3_bn", 3, 12).features(),
-                     unit(x, p + ".aspp4", p + ".aspp4_bn", 3, 18).features(),
-                     unit(pooled, p + ".aspp5", p + ".aspp5_bn", 1).features()},
-                    1);
+        at::Tensor branches = at::cat({unit(x, p + ".aspp1", p + ".aspp1_bn", 1).features(),
+                                       unit(x, p + ".aspp2", p + ".aspp2_bn", 3, 6).features(),
+                                       unit(x, p + ".aspp3", p + ".aspp3_bn", 3, 12).features(),
+                                       unit(x, p + ".aspp4", p + ".aspp4_bn", 3, 18).features(),
+                                       unit(pooled, p + ".aspp5", p + ".aspp5_bn", 1).features()},
+                                      1);
         SparseTensor fused = unit(x.with_features(branches), p + ".conv2", p + ".bn2", 1);
         return x.with_features(fused.features() + x.features());
     }
@@ -98,8 +101,10 @@ void add_inception(ParamMap& params, ParamMap& buffers, const std::string& p, in
         const char* conv;
         const char* norm;
         int64_t in, out, kernel;
-    } units[] = {{".conv1", ".norm1", c, q, 1}, {".conv2", ".norm2", q, q, 3},
-                 {".conv3", ".norm3", q, h, 1}, {".conv4", ".norm4", c, q, 3},
+    } units[] = {{".conv1", ".norm1", c, q, 1},
+                 {".conv2", ".norm2", q, q, 3},
+                 {".conv3", ".norm3", q, h, 1},
+                 {".conv4", ".norm4", c, q, 3},
                  {".conv5", ".norm5", q, h, 3}};
     for (const auto& u : units) {
         add_sparse_conv(params, p + u.conv, u.in, u.out, u.kernel, /*bias=*/true, rng);
@@ -190,8 +195,7 @@ PuDenseOptions PuDenseOptions::from_json(const nlohmann::json& config) {
         }
     }
     for (int64_t c : options.channels)
-        if (c % 4 != 0)
-            throw_input_error(kContext, "channels must be multiples of 4, found {}", c);
+        if (c % 4 != 0) throw_input_error(kContext, "channels must be multiples of 4, found {}", c);
     if (options.channels[0] != options.channels[1])
         throw_input_error(kContext, "channels[0] = {} must equal channels[1] = {}",
                           options.channels[0], options.channels[1]);
@@ -233,8 +237,8 @@ PuDense::PuDense(const PuDenseOptions& options) : options_(options) {
     for (int64_t l = 5; l >= 2; --l) {
         const int64_t in = l == 5 ? c[4] : c[l - 1] + c[l];
         const int64_t kernel = l == 2 ? options.last_kernel_size : 3;
-        add_sparse_conv(params_, level("conv", l, "_tr"), in, c[l - 1], kernel, /*bias=*/false,
-                        rng, /*transposed=*/true);
+        add_sparse_conv(params_, level("conv", l, "_tr"), in, c[l - 1], kernel, /*bias=*/false, rng,
+                        /*transposed=*/true);
         add_batch_norm(params_, buffers_, level("norm", l, "_tr"), c[l - 1]);
         add_block(params_, buffers_, level("block", l, "_tr"), c[l - 1], rng);
     }
@@ -314,11 +318,12 @@ at::Tensor PuDense::upsample(const at::Tensor& x, const ParamMap& params) const 
     std::vector<at::Tensor> outputs;
     for (int64_t b = 0; b < batch; ++b) {
         at::Tensor rows = (occ.sites->batch_index() == b).nonzero().view(-1);
-        at::Tensor ranked = std::get<1>(
-            logits.index_select(0, rows).topk(std::min(wanted, rows.numel())));
+        at::Tensor ranked =
+            std::get<1>(logits.index_select(0, rows).topk(std::min(wanted, rows.numel())));
         // Too few candidates: repeat the ranking so that the count stays exactly rN.
         at::Tensor order = at::arange(wanted, at::kLong).remainder(ranked.numel());
-        outputs.push_back(centres.index_select(0, rows.index_select(0, ranked.index_select(0, order))));
+        outputs.push_back(
+            centres.index_select(0, rows.index_select(0, ranked.index_select(0, order))));
     }
     return at::stack(outputs).to(x.options());
 }
@@ -333,8 +338,7 @@ at::Tensor PuDense::loss(const at::Tensor& input, const at::Tensor& target, cons
     BatchNormContext norm;
     Occupancy occ = occupancy(voxels(input), params, norm);
     CoordinateSetPtr truth = voxelize(target, voxel_size());
-    at::Tensor labels =
-        (truth->lookup(occ.sites->coords()) >= 0).to(occ.logits.options());
+    at::Tensor labels = (truth->lookup(occ.sites->coords()) >= 0).to(occ.logits.options());
     // BCE with logits, log(1 + e^z) − y·z: softplus is differentiable twice.
     at::Tensor bce = (at::softplus(occ.logits) - labels * occ.logits).mean();
     return options_.loss_scale * bce;

@@ -47,13 +47,13 @@ struct Grid {
         EXPECT_TRUE((xyz.remainder(unit) == 0).all().item<bool>());
         xyz = xyz.div(unit, "floor");
         EXPECT_TRUE(((xyz >= 0) & (xyz < size)).all().item<bool>()) << "grid too small";
-        return c.select(1, 0) * size * size * size + (xyz.select(1, 0) * size + xyz.select(1, 1)) *
-                                                         size +
-                                                     xyz.select(1, 2);
+        return c.select(1, 0) * size * size * size +
+               (xyz.select(1, 0) * size + xyz.select(1, 1)) * size + xyz.select(1, 2);
     }
     at::Tensor to_dense(const SparseTensor& x) const {
         const int64_t channels = x.channels();
-        at::Tensor flat = at::zeros({kBatches * size * size * size, channels}, x.features().options());
+        at::Tensor flat =
+            at::zeros({kBatches * size * size * size, channels}, x.features().options());
         flat = flat.index_put({index(*x.coords())}, x.features());
         return flat.view({kBatches, size, size, size, channels}).permute({0, 4, 1, 2, 3});
     }
@@ -97,9 +97,9 @@ void expect_close(const at::Tensor& a, const at::Tensor& b, double tolerance = 1
 TEST(SparseConv, StrideOneMatchesDenseConv3dForKernelsAndDilations) {
     auto set = occupied_grid(-4, 10, 1, 1);
     // 3 -> 4 channels moves rows element-wise, 24 -> 20 row by row (see sparse_conv.cpp).
-    for (auto [k, dilation, in, out] : {std::tuple{1, 1, 3, 4}, std::tuple{3, 1, 3, 4},
-                                         std::tuple{5, 1, 3, 4}, std::tuple{3, 2, 3, 4},
-                                         std::tuple{3, 1, 24, 20}, std::tuple{5, 2, 24, 20}}) {
+    for (auto [k, dilation, in, out] :
+         {std::tuple{1, 1, 3, 4}, std::tuple{3, 1, 3, 4}, std::tuple{5, 1, 3, 4},
+          std::tuple{3, 2, 3, 4}, std::tuple{3, 1, 24, 20}, std::tuple{5, 2, 24, 20}}) {
         SparseTensor x = random_features(set, in, 2);
         ParamMap params = conv_params(in, out, k, /*bias=*/true, 3);
         SparseTensor y = sparse_conv(x, params, "c", {k, 1, dilation});
@@ -154,9 +154,8 @@ TEST(SparseConv, GenerativeMatchesDenseConvTranspose3dEverywhere) {
     SparseTensor y = sparse_conv_generative(coarse, params, "c", 5);
     EXPECT_EQ(y.stride(), 1);
     Grid coarse_grid{-8, 2, 9};
-    at::Tensor dense = at::conv_transpose3d(coarse_grid.to_dense(coarse),
-                                            dense_weight_transposed(params["c.weight"], 5), {},
-                                            2, 2);
+    at::Tensor dense = at::conv_transpose3d(
+        coarse_grid.to_dense(coarse), dense_weight_transposed(params["c.weight"], 5), {}, 2, 2);
     Grid fine_grid{-8, 1, dense.size(2)};
     expect_close(y.features(), fine_grid.at_sites(dense, *y.coords()));
     // Nothing outside the generated sites: the dense result vanishes there.
@@ -201,7 +200,9 @@ std::vector<Case> derivative_cases() {
     });
     add(
         "wide", 3, fine,
-        [](const SparseTensor& x, const ParamMap& p) { return sparse_conv(x, p, "c", {3, 1, 1}); },
+        [](const SparseTensor& x, const ParamMap& p) {
+            return sparse_conv(x, p, "c", {3, 1, 1});
+        },
         16);
     // The per-offset path that large maps take.
     add("per-offset", 3, fine, [](const SparseTensor& x, const ParamMap& p) {

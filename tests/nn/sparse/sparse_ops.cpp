@@ -43,9 +43,9 @@ TEST(SparseBatchNorm, MatchesTorchBatchNormInTrainingAndEvaluation) {
     SparseTensor ours = sparse_batch_norm(x, params, "bn", train);
     EXPECT_EQ(ours.coords(), x.coords());
     at::Tensor running_mean = at::zeros({3}), running_var = at::ones({3});
-    at::Tensor theirs = at::batch_norm(x.features(), params["bn.gamma"], params["bn.beta"],
-                                       running_mean, running_var, /*training=*/true, 0.1, 1e-5,
-                                       false);
+    at::Tensor theirs =
+        at::batch_norm(x.features(), params["bn.gamma"], params["bn.beta"], running_mean,
+                       running_var, /*training=*/true, 0.1, 1e-5, false);
     EXPECT_TRUE(at::allclose(ours.features(), theirs, 1e-5, 1e-5));
     // Both moved their running statistics with momentum 0.1 and the unbiased variance.
     EXPECT_TRUE(at::allclose(buffers["bn.running_mean"], running_mean, 1e-5, 1e-6));
@@ -80,9 +80,10 @@ TEST(SparseBatchNorm, SecondDerivativeMatchesFiniteDifferences) {
     auto h = torch::autograd::grad({s}, {x, w});
     double analytic = ((h[0] * vx).sum() + (h[1] * vw).sum()).item<double>();
     const double eps = 1e-5;
-    double numeric = (std::get<0>(directional(x0 + eps * vx, w0 + eps * vw, false)).item<double>() -
-                      std::get<0>(directional(x0 - eps * vx, w0 - eps * vw, false)).item<double>()) /
-                     (2 * eps);
+    double numeric =
+        (std::get<0>(directional(x0 + eps * vx, w0 + eps * vw, false)).item<double>() -
+         std::get<0>(directional(x0 - eps * vx, w0 - eps * vw, false)).item<double>()) /
+        (2 * eps);
     EXPECT_GT(std::abs(numeric), 1e-6);
     EXPECT_NEAR(analytic, numeric, 1e-6 * std::max(1.0, std::abs(numeric)));
 }
@@ -94,8 +95,8 @@ TEST(SparseBatchNorm, OneSiteNormalisesToBetaAndLeavesRunningStatistics) {
     BatchNormContext context;
     context.update = &buffers;
     SparseTensor one(line(1, 1), at::tensor({3.0f, -1.0f}).view({1, 2}));
-    EXPECT_TRUE(at::allclose(sparse_batch_norm(one, params, "bn", context).features(),
-                             at::zeros({1, 2})));
+    EXPECT_TRUE(
+        at::allclose(sparse_batch_norm(one, params, "bn", context).features(), at::zeros({1, 2})));
     for (auto& [name, b] : buffers) EXPECT_TRUE(b.equal(before[name])) << name;
 }
 
@@ -106,8 +107,8 @@ TEST(SparseOps, GlobalAveragePoolAndBroadcastArePerBatchElement) {
     at::Tensor expected = at::tensor({3.f, 30.f, 2.f, 20.f, 4.f, 40.f}).view({3, 2});
     EXPECT_TRUE(at::allclose(pooled, expected));
     SparseTensor spread = broadcast_to_sites(pooled, set);
-    EXPECT_TRUE(at::allclose(spread.features(), expected.index_select(
-                                                    0, at::tensor({0, 1, 0, 2, 0}, at::kLong))));
+    EXPECT_TRUE(at::allclose(spread.features(),
+                             expected.index_select(0, at::tensor({0, 1, 0, 2, 0}, at::kLong))));
 }
 
 TEST(SparseOps, PruneKeepsMaskedSitesInOrder) {
@@ -117,8 +118,8 @@ TEST(SparseOps, PruneKeepsMaskedSitesInOrder) {
     SparseTensor kept = prune(SparseTensor(set, f), keep);
     ASSERT_EQ(kept.size(), 4);
     EXPECT_TRUE(kept.features().view(-1).equal(at::tensor({0.f, 3.f, 4.f, 5.f})));
-    EXPECT_TRUE(kept.coords()->coords().equal(set->coords().index_select(
-        0, at::tensor({0, 3, 4, 5}, at::kLong))));
+    EXPECT_TRUE(kept.coords()->coords().equal(
+        set->coords().index_select(0, at::tensor({0, 3, 4, 5}, at::kLong))));
     EXPECT_THROW(prune(SparseTensor(set, f), at::ones({3}, at::kBool)), InputError);
 }
 

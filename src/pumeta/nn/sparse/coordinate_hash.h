@@ -17,8 +17,7 @@ constexpr int64_t kMaxBatch = 65534;
 /// Whether (batch, x, y, z) is in the packable range.
 inline bool packable(int64_t batch, int64_t x, int64_t y, int64_t z) {
     return batch >= 0 && batch <= kMaxBatch && x >= kMinCoordinate && x <= kMaxCoordinate &&
-           y >= kMinCoordinate && y <= kMaxCoordinate && z >= kMinCoordinate &&
-           z <= kMaxCoordinate;
+           y >= kMinCoordinate && y <= kMaxCoordinate && z >= kMinCoordinate && z <= kMaxCoordinate;
 }
 
 /// The 64-bit key of a packable coordinate: 16 bits each, biased to unsigned. Batch 65535 is

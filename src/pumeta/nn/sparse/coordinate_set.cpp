@@ -41,11 +41,10 @@ CoordinateSetPtr CoordinateSet::create(const at::Tensor& coords, int64_t stride)
                               i, row[0], row[1], row[2], row[3], kMaxBatch, kMinCoordinate,
                               kMaxCoordinate);
         if (row[1] % stride || row[2] % stride || row[3] % stride)
-            throw_input_error(kContext, "row {} = ({}, {}, {}) is not a multiple of stride {}",
-                              i, row[1], row[2], row[3], stride);
+            throw_input_error(kContext, "row {} = ({}, {}, {}) is not a multiple of stride {}", i,
+                              row[1], row[2], row[3], stride);
         int64_t first = hash.insert(pack_coordinate(row[0], row[1], row[2], row[3]), i);
-        if (first != i)
-            throw_input_error(kContext, "rows {} and {} are the same site", first, i);
+        if (first != i) throw_input_error(kContext, "rows {} and {} are the same site", first, i);
     }
     return CoordinateSetPtr(new CoordinateSet(wide.to(at::kInt), stride, std::move(hash)));
 }
@@ -86,8 +85,8 @@ CoordinateSetPtr CoordinateSet::coarser(int64_t factor) const {
         int64_t x = floor_div(row[1], step) * step, y = floor_div(row[2], step) * step,
                 z = floor_div(row[3], step) * step;
         if (!packable(row[0], x, y, z))
-            throw_input_error(kContext, "site ({}, {}, {}) at stride {} leaves the range", x, y,
-                              z, step);
+            throw_input_error(kContext, "site ({}, {}, {}) at stride {} leaves the range", x, y, z,
+                              step);
         int64_t next = int64_t(kept.size() / 4);
         if (hash.insert(pack_coordinate(row[0], x, y, z), next) == next)
             kept.insert(kept.end(), {row[0], int32_t(x), int32_t(y), int32_t(z)});

@@ -150,9 +150,8 @@ GeneratedCoordinates generate_coordinates(const CoordinateSet& coarse, int64_t k
             out_rows[k][i] = stored;
         }
     }
-    GeneratedCoordinates result{at::empty({int64_t(sites.size() / 4), 4}, at::kInt),
-                                std::move(hash),
-                                {}};
+    GeneratedCoordinates result{
+        at::empty({int64_t(sites.size() / 4), 4}, at::kInt), std::move(hash), {}};
     std::copy(sites.begin(), sites.end(), result.coords.data_ptr<int32_t>());
     at::Tensor all_coarse = at::arange(count, at::kLong);
     for (int64_t k = 0; k < volume; ++k) {

@@ -121,14 +121,13 @@ at::Tensor apply_kernel_map(const at::Tensor& features, const at::Tensor& weight
 
 SparseTensor sparse_conv(const SparseTensor& x, const ParamMap& params, const std::string& prefix,
                          const SparseConvOptions& options) {
-    const at::Tensor& weight =
-        checked_weight(params, prefix, options.kernel_size, x.channels());
+    const at::Tensor& weight = checked_weight(params, prefix, options.kernel_size, x.channels());
     at::Tensor bias = optional_param(params, prefix + ".bias");
     if (options.stride < 1)
         throw_input_error(kContext, "stride must be >= 1, found {}", options.stride);
     if (options.stride > 1 && options.dilation != 1)
-        throw_input_error(kContext, "dilation {} with stride {} is not supported",
-                          options.dilation, options.stride);
+        throw_input_error(kContext, "dilation {} with stride {} is not supported", options.dilation,
+                          options.stride);
     if (options.stride == 1) {
         if (options.kernel_size == 1) {
             at::Tensor out = x.features().mm(weight[0]);
@@ -163,8 +162,7 @@ SparseTensor sparse_conv_generative(const SparseTensor& x, const ParamMap& param
     CoordinateSet::Generated generated = x.coords()->generated(kernel_size, factor);
     return SparseTensor(generated.set,
                         apply_kernel_map(x.features(), weight,
-                                         optional_param(params, prefix + ".bias"),
-                                         *generated.map));
+                                         optional_param(params, prefix + ".bias"), *generated.map));
 }
 
 }  // namespace pumeta

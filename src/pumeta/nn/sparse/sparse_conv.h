@@ -20,8 +20,7 @@ namespace pumeta {
 /// uniform in ±1/sqrt(fan) with fan = in·K³ (out·K³ when `transposed`), MinkowskiEngine's
 /// initialisation.
 void add_sparse_conv(ParamMap& params, const std::string& prefix, int64_t in, int64_t out,
-                     int64_t kernel_size, bool bias, std::mt19937_64& rng,
-                     bool transposed = false);
+                     int64_t kernel_size, bool bias, std::mt19937_64& rng, bool transposed = false);
 
 /// Σ_k scatter(map.out[k], gather(map.in[k], features) · weight[k]) (+ bias):
 /// features [map.input_size, Cin], weight [K, Cin, Cout] with K = map.kernel_volume(), bias

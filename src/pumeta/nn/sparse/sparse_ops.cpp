@@ -47,11 +47,10 @@ SparseTensor prune(const SparseTensor& x, const at::Tensor& keep) {
 at::Tensor global_average_pool(const SparseTensor& x) {
     const int64_t batch = x.coords()->batch_size();
     at::Tensor index = on_device(x.coords()->batch_index(), x.features());
-    at::Tensor sums = at::zeros({batch, x.channels()}, x.features().options())
-                          .index_add(0, index, x.features());
-    at::Tensor counts = at::bincount(x.coords()->batch_index(), {}, batch)
-                            .to(x.features().options())
-                            .clamp_min(1);
+    at::Tensor sums =
+        at::zeros({batch, x.channels()}, x.features().options()).index_add(0, index, x.features());
+    at::Tensor counts =
+        at::bincount(x.coords()->batch_index(), {}, batch).to(x.features().options()).clamp_min(1);
     return sums / counts.unsqueeze(1);
 }
 

@@ -11,10 +11,10 @@ namespace pumeta {
 
 at::Tensor voxel_coordinates(const at::Tensor& points, double voxel_size) {
     check_batched_points(points, "voxelize");
-    if (!(voxel_size > 0)) throw_input_error("voxelize", "voxel size must be > 0, found {}", voxel_size);
+    if (!(voxel_size > 0))
+        throw_input_error("voxelize", "voxel size must be > 0, found {}", voxel_size);
     at::Tensor p = points.detach().to(at::kCPU, at::kDouble);
-    if (!at::isfinite(p).all().item<bool>())
-        throw_input_error("voxelize", "points must be finite");
+    if (!at::isfinite(p).all().item<bool>()) throw_input_error("voxelize", "points must be finite");
     const int64_t batch = p.size(0), count = p.size(1);
     at::Tensor grid = at::floor(p / voxel_size).to(at::kLong).view({batch * count, 3});
     at::Tensor column =
