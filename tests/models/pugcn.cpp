@@ -210,9 +210,13 @@ TEST(PuGcn, InvalidConfigsAreInputErrorsNamingTheField) {
     EXPECT_NE(message({{"ratio", 4}}).find("\"backbone\""), std::string::npos);
 }
 
-TEST(PuGcn, TooFewInputPointsOrWrongDtypeAreInputErrors) {
+TEST(PuGcn, SmallPatchesUseFewerNeighboursButOnePointIsAnInputError) {
     PuGcn model(PuGcnOptions::from_json(tiny_config()));
-    EXPECT_THROW(model.upsample(sheet(1, 8, 1)), InputError);
+    // Fewer points than k·dilation: the graphs shrink to the points present.
+    at::Tensor small = model.upsample(sheet(1, 8, 1));
+    EXPECT_EQ(small.size(1), 8 * model.ratio());
+    EXPECT_TRUE(small.isfinite().all().item<bool>());
+    EXPECT_THROW(model.upsample(sheet(1, 1, 1)), InputError);
     EXPECT_THROW(model.upsample(sheet(1, 32, 1, at::kDouble)), InputError);
     EXPECT_THROW(model.upsample(at::zeros({1, 32, 2})), InputError);
 }

@@ -4,6 +4,7 @@
 #include <iostream>
 
 #include "pumeta/cli/commands.h"
+#include "pumeta/inference/model_file.h"
 
 namespace pumeta::cli {
 
@@ -36,7 +37,31 @@ nlohmann::json geometry_info(const std::string& path, const ReadOptions& read) {
     return info;
 }
 
+bool is_model_file(const std::string& path) {
+    auto dot = path.find_last_of('.');
+    return dot != std::string::npos && (path.substr(dot) == ".pt" || path.substr(dot) == ".ckpt");
+}
+
+nlohmann::json model_info(const std::string& path) {
+    InferenceModel model = load_inference_model(path);
+    nlohmann::json info = {{"file", path},
+                           {"kind", "model"},
+                           {"backbone", model.backbone->name()},
+                           {"ratio", model.backbone->ratio()},
+                           {"parameters", count_parameters(model.backbone->parameters())},
+                           {"config", model.backbone->config()},
+                           {"meta_trained", model.meta_trained}};
+    if (model.meta_trained) info["meta"] = model.meta.to_json();
+    for (const char* key : {"step", "val_cd", "sampler"})
+        if (model.extra.is_object() && model.extra.contains(key)) info[key] = model.extra[key];
+    return info;
+}
+
 void print_text(const nlohmann::json& info) {
+    if (info["kind"] == "model") {
+        std::cout << info.dump(2) << "\n";
+        return;
+    }
     std::cout << info["file"].get<std::string>() << ": " << info["kind"].get<std::string>() << " ("
               << info["format"].get<std::string>() << ")\n";
     std::cout << "  points: " << info["points"] << "\n";
@@ -61,7 +86,8 @@ void add_info_command(CLI::App& app) {
     command->add_flag("--json", args->json, "one JSON object on stdout");
     add_read_options(*command, args->read);
     command->callback([args] {
-        nlohmann::json info = geometry_info(args->path, args->read);
+        nlohmann::json info = is_model_file(args->path) ? model_info(args->path)
+                                                        : geometry_info(args->path, args->read);
         if (args->json)
             print_json(info);
         else

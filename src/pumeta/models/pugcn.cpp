@@ -119,10 +119,14 @@ PuGcn::PuGcn(const PuGcnOptions& options) : options_(options) {
 at::Tensor PuGcn::upsample(const at::Tensor& x, const ParamMap& params) const {
     check_batched_points(x, "pugcn input");
     const int64_t batch = x.size(0), num_points = x.size(1), r = options_.ratio;
-    const int64_t k = options_.k, dilation = options_.dilation;
-    if (num_points <= k * dilation)
-        throw_input_error("pugcn input", "needs more than k·dilation = {} points, found {}",
-                          k * dilation, num_points);
+    const int64_t dilation = options_.dilation;
+    if (num_points < 2)
+        throw_input_error("pugcn input", "needs at least 2 points per patch, found {}",
+                          num_points);
+    // Patches smaller than the graphs need (tiny inputs; X↓ of a 256-point patch at 8x and
+    // 16x) use as many neighbours as exist: the weights do not depend on k.
+    const int64_t k = std::min(options_.k, num_points - 1);
+    const int64_t k_dilated = std::min(options_.k * dilation, num_points - 1);
     const at::Tensor& head = param(params, "head.central.weight");
     if (head.scalar_type() != x.scalar_type() || head.device() != x.device())
         throw_input_error("pugcn input", "points are {} on {}, parameters {} on {}",
@@ -135,9 +139,9 @@ at::Tensor PuGcn::upsample(const at::Tensor& x, const ParamMap& params) const {
     at::Tensor fused;
     for (int64_t b = 0; b < options_.blocks; ++b) {
         const std::string prefix = block_prefix(b);
-        at::Tensor graph = knn_graph(features, k * dilation);
+        at::Tensor graph = knn_graph(features, k_dilated);
         at::Tensor nearest = graph.narrow(2, 0, k);
-        at::Tensor dilated = graph.slice(2, 0, k * dilation, dilation);
+        at::Tensor dilated = graph.slice(2, 0, k_dilated, dilation);
         at::Tensor reduced = at::relu(conv1x1(features, params, prefix + ".reduction"));
         at::Tensor out = at::cat({dense_gcn(reduced, nearest, params, prefix + ".path1"),
                                   dense_gcn(reduced, dilated, params, prefix + ".path2"),

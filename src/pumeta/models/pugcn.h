@@ -53,7 +53,8 @@ class PuGcn : public Backbone {
     int64_t patch_size() const override { return options_.patch_size; }
     const PuGcnOptions& options() const { return options_; }
 
-    /// x float [B,N,3] (N > k·dilation) -> [B,rN,3]; point i's r outputs are consecutive.
+    /// x float [B,N,3] (N >= 2; k shrinks to N-1 on small patches) -> [B,rN,3]; point i's r
+    /// outputs are consecutive.
     at::Tensor upsample(const at::Tensor& x, const ParamMap& params) const override;
     using Backbone::upsample;
 

@@ -57,8 +57,8 @@ void add_edge_conv(ParamMap& params, const std::string& prefix, int64_t in, int6
 at::Tensor edge_conv_edges(const at::Tensor& x, const at::Tensor& idx, const ParamMap& params,
                            const std::string& prefix) {
     EdgeTerms terms = edge_conv_terms(x, params, prefix);
-    // ReLU in place: the sum is not needed by its own backward.
-    return (gather_neighbors(terms.message, idx) + terms.centre.unsqueeze(2)).relu_();
+    // In place: a gather's output is not needed by its backward, nor a sum's.
+    return gather_neighbors(terms.message, idx).add_(terms.centre.unsqueeze(2)).relu_();
 }
 
 at::Tensor edge_conv(const at::Tensor& x, const at::Tensor& idx, const ParamMap& params,

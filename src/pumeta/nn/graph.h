@@ -21,9 +21,10 @@ at::Tensor gather_neighbors(const at::Tensor& x, const at::Tensor& idx);
 
 /// Channel-wise maximum over neighbours without materialising [B,N,k,C]:
 /// out[b,i,c] = max_j x[b, idx[b,i,j], c]; x [B,N,C], idx int64 [B,N,k] -> [B,N,C].
-/// The maximising neighbour is found without gradient tracking and the value is then picked
-/// with a gather, so the result and its gradients (first and second order) equal those of
-/// gather_neighbors(x, idx).amax(2) up to the choice among exact ties.
+/// The maximising neighbour is found without gradient tracking (first on ties) and its value
+/// picked with an index_select, so the result and its gradients (first and second order)
+/// equal those of gather_neighbors(x, idx).amax(2) except that amax splits the gradient among
+/// exact ties.
 at::Tensor gather_max(const at::Tensor& x, const at::Tensor& idx);
 
 /// Channel-wise maximum over the neighbour dimension of per-edge features:

@@ -1,0 +1,99 @@
+// The CLI contract: exit codes, one-line errors naming the file, --json forms, no partial
+// output files.
+#include <ATen/ATen.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+
+#include "pumeta/geometry/io.h"
+#include "support/test_util.h"
+
+namespace pumeta {
+namespace {
+
+namespace fs = std::filesystem;
+
+bool one_line(const std::string& text) {
+    return !text.empty() && text.find('\n') == text.size() - 1;
+}
+
+TEST(Cli, MissingFileIsExitTwoWithOneLineNamingTheFile) {
+    test::TempDir dir;
+    auto r = test::run_cli({"info", dir.file("nope.ply")});
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_TRUE(one_line(r.err)) << r.err;
+    EXPECT_NE(r.err.find("nope.ply"), std::string::npos) << r.err;
+}
+
+TEST(Cli, BadInputsGiveExitTwoAndNoOutputFile) {
+    test::TempDir dir;
+    test::write_file(dir.file("empty.ply"), "");
+    test::write_file(dir.file("cloud.laz"), "LASF");
+    test::write_file(dir.file("cloud.abc"), "1 2 3\n");
+    test::write_file(dir.file("nan.xyz"), "0 0 0\nnan 1 2\n1 1 1\n");
+    test::write_file(dir.file("lies.ply"),
+                     "ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nproperty float y\n"
+                     "property float z\nend_header\n0 0 0\n1 1 1\n");
+    for (const char* name : {"empty.ply", "cloud.laz", "cloud.abc", "nan.xyz", "lies.ply"}) {
+        std::string out = dir.file(std::string(name) + ".out.ply");
+        auto r = test::run_cli({"convert", dir.file(name), "-o", out});
+        EXPECT_EQ(r.exit_code, 2) << name << ": " << r.err;
+        EXPECT_TRUE(one_line(r.err)) << name << ": " << r.err;
+        EXPECT_NE(r.err.find(name), std::string::npos) << r.err;
+        EXPECT_FALSE(fs::exists(out)) << name;
+    }
+    // Dropping invalid points on request works and says how many.
+    auto r = test::run_cli({"convert", dir.file("nan.xyz"), "-o", dir.file("ok.ply"),
+                            "--drop-invalid"});
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(read_point_cloud(dir.file("ok.ply")).size(), 2);
+}
+
+TEST(Cli, MetricsJsonHasTheContractKeys) {
+    test::TempDir dir;
+    at::Tensor gt = test::random_points(200, 1);
+    at::Tensor pred = gt + 0.01 * test::random_points(200, 2);
+    write_point_cloud(dir.file("gt.ply"), {gt});
+    write_point_cloud(dir.file("pred.ply"), {pred});
+    auto r = test::run_cli({"metrics", dir.file("pred.ply"), dir.file("gt.ply"), "--json"});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    auto j = nlohmann::json::parse(r.out);
+    for (const char* key : {"cd", "hd", "hd_legacy", "psnr", "p2f", "n_pred", "n_gt"})
+        EXPECT_TRUE(j.contains(key)) << key;
+    EXPECT_TRUE(j["p2f"].is_null());
+    EXPECT_EQ(j["n_pred"], 200);
+    EXPECT_GT(j["cd"].get<double>(), 0.0);
+}
+
+TEST(Cli, InfoJsonAndSample) {
+    test::TempDir dir;
+    // A unit cube as OFF.
+    test::write_file(dir.file("cube.off"),
+                     "OFF\n8 6 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n0 0 1\n1 0 1\n1 1 1\n0 1 1\n"
+                     "4 0 3 2 1\n4 4 5 6 7\n4 0 1 5 4\n4 2 3 7 6\n4 1 2 6 5\n4 0 4 7 3\n");
+    auto info = test::run_cli({"info", dir.file("cube.off"), "--json"});
+    ASSERT_EQ(info.exit_code, 0) << info.err;
+    auto j = nlohmann::json::parse(info.out);
+    EXPECT_EQ(j["points"], 8);
+    EXPECT_EQ(j["faces"], 12);
+    auto sample = test::run_cli({"sample", dir.file("cube.off"), "-n", "500", "--seed", "3",
+                                 "-o", dir.file("s.ply")});
+    ASSERT_EQ(sample.exit_code, 0) << sample.err;
+    EXPECT_EQ(read_point_cloud(dir.file("s.ply")).size(), 500);
+    // More points than a tiny cloud has is a clear error, not a crash.
+    auto too_many = test::run_cli({"sample", dir.file("cube.off"), "-n", "0", "-o",
+                                   dir.file("t.ply")});
+    EXPECT_EQ(too_many.exit_code, 2);
+}
+
+TEST(Cli, UnknownDeviceIsAnInputError) {
+    test::TempDir dir;
+    write_point_cloud(dir.file("in.ply"), {test::random_points(50, 1)});
+    auto r = test::run_cli({"upsample", dir.file("in.ply"), "-o", dir.file("out.ply"),
+                            "--device", "tpu"});
+    EXPECT_EQ(r.exit_code, 2) << r.err;
+    EXPECT_FALSE(fs::exists(dir.file("out.ply")));
+}
+
+}  // namespace
+}  // namespace pumeta
