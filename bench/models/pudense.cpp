@@ -1,5 +1,5 @@
-// PU-Dense training-step and inference cost on 2 threads: a batch of 8 patches of 256 -> 2,048
-// points (r = 8) at the compact and the paper width.
+// PU-Dense training-step and inference cost: a batch of 8 patches of 256 -> 2,048 points
+// (r = 8) at the compact and the paper width. The argument is the thread count.
 #include "pumeta/models/pudense.h"
 
 #include <ATen/ATen.h>
@@ -35,7 +35,7 @@ void report(benchmark::State& state) {
 }
 
 void loss_and_gradients(benchmark::State& state, const std::string& preset) {
-    at::set_num_threads(2);
+    at::set_num_threads(int(state.range(0)));
     const PuDense& m = model(preset);
     at::Tensor gt = patches(kPoints * kRatio, 1);
     at::Tensor input = gt.narrow(1, 0, kPoints);  // the points are i.i.d.: a random subset
@@ -46,7 +46,7 @@ void loss_and_gradients(benchmark::State& state, const std::string& preset) {
 }
 
 void upsample(benchmark::State& state, const std::string& preset) {
-    at::set_num_threads(2);
+    at::set_num_threads(int(state.range(0)));
     const PuDense& m = model(preset);
     at::Tensor input = patches(kPoints, 2);
     for (auto _ : state) benchmark::DoNotOptimize(m.upsample(input));
@@ -54,12 +54,18 @@ void upsample(benchmark::State& state, const std::string& preset) {
 }
 
 BENCHMARK_CAPTURE(loss_and_gradients, compact, std::string("compact"))
+    ->Arg(1)
+    ->Arg(2)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 BENCHMARK_CAPTURE(loss_and_gradients, paper, std::string("paper"))
+    ->Arg(1)
+    ->Arg(2)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 BENCHMARK_CAPTURE(upsample, compact, std::string("compact"))
+    ->Arg(1)
+    ->Arg(2)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 

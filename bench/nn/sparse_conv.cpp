@@ -1,6 +1,7 @@
 // The sparse engine's convolution: a 3³ convolution 64 -> 64 on about 100k active sites of a
 // voxelised sphere (a surface, as PU-Dense's voxels are), against a dense GEMM doing the same
-// FLOPs. Compare the "GFLOP/s" counters: useful FLOPs = 2 · pairs · 64 · 64.
+// FLOPs. Compare the "GFLOP/s" counters: useful FLOPs = 2 · pairs · 64 · 64. The argument is
+// the thread count (on a shared machine, OpenMP spin-waiting can make 2 threads slower than 1).
 #include "pumeta/nn/sparse/sparse_conv.h"
 
 #include <ATen/ATen.h>
@@ -63,7 +64,7 @@ void report(benchmark::State& state, double flops) {
 }
 
 void BM_SparseConv3x3x3Forward(benchmark::State& state) {
-    at::set_num_threads(2);
+    at::set_num_threads(int(state.range(0)));
     const Fixture& f = fixture();
     at::NoGradGuard no_grad;
     for (auto _ : state)
@@ -73,7 +74,7 @@ void BM_SparseConv3x3x3Forward(benchmark::State& state) {
 
 /// Forward and backward to the weight and the features: three times the forward FLOPs.
 void BM_SparseConv3x3x3ForwardBackward(benchmark::State& state) {
-    at::set_num_threads(2);
+    at::set_num_threads(int(state.range(0)));
     const Fixture& f = fixture();
     at::Tensor x = f.features.clone().requires_grad_(true);
     const at::Tensor& w = f.params.at("c.weight");
@@ -86,7 +87,7 @@ void BM_SparseConv3x3x3ForwardBackward(benchmark::State& state) {
 
 /// The dense equivalent: one GEMM [pairs, 64] x [64, 64], the same FLOPs as the forward.
 void BM_DenseGemmSameFlops(benchmark::State& state) {
-    at::set_num_threads(2);
+    at::set_num_threads(int(state.range(0)));
     const Fixture& f = fixture();
     at::Tensor a = at::randn({f.pairs, kChannels}), b = at::randn({kChannels, kChannels});
     for (auto _ : state) benchmark::DoNotOptimize(a.mm(b));
@@ -95,7 +96,7 @@ void BM_DenseGemmSameFlops(benchmark::State& state) {
 
 /// Building the 27-offset kernel map of a fresh coordinate set (hashing + lookups).
 void BM_KernelMapBuild(benchmark::State& state) {
-    at::set_num_threads(2);
+    at::set_num_threads(int(state.range(0)));
     const Fixture& f = fixture();
     for (auto _ : state) {
         CoordinateSetPtr fresh = CoordinateSet::create(f.sites->coords(), 1);
@@ -105,10 +106,14 @@ void BM_KernelMapBuild(benchmark::State& state) {
         benchmark::Counter(double(f.sites->size()), benchmark::Counter::kIsIterationInvariantRate);
 }
 
-BENCHMARK(BM_SparseConv3x3x3Forward)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_SparseConv3x3x3ForwardBackward)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_DenseGemmSameFlops)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK(BM_KernelMapBuild)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_SparseConv3x3x3Forward)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_SparseConv3x3x3ForwardBackward)
+    ->Arg(1)
+    ->Arg(2)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK(BM_DenseGemmSameFlops)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(BM_KernelMapBuild)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace
 

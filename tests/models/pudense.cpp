@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <fstream>
 #include <set>
 
 #include "pumeta/core/error.h"
@@ -16,6 +17,8 @@
 #include "pumeta/nn/adam.h"
 #include "pumeta/nn/gradients.h"
 #include "pumeta/nn/sparse/voxelize.h"
+#include "pumeta/train/trainer.h"
+#include "support/test_util.h"
 
 namespace pumeta {
 namespace {
@@ -77,6 +80,16 @@ TEST(PuDense, ConfigRoundTripsAndRejectsInvalidFields) {
           nlohmann::json{{"channels", {6, 6, 8, 8, 8}}}, nlohmann::json{{"last_kernel_size", 4}},
           nlohmann::json{{"resolution", 0}}, nlohmann::json{{"downsampler", "magic"}}})
         EXPECT_THROW(PuDenseOptions::from_json(bad), InputError) << bad.dump();
+}
+
+TEST(PuDense, ShippedConfigBuildsTheCompactX8Model) {
+    std::ifstream file(test::source_dir() + "/configs/pudense-x8.json");
+    ASSERT_TRUE(file) << "configs/pudense-x8.json";
+    TrainConfig config = TrainConfig::from_json(nlohmann::json::parse(file));
+    auto model = make_backbone(config.backbone);
+    EXPECT_EQ(model->name(), "pudense");
+    EXPECT_EQ(model->ratio(), 8);
+    EXPECT_EQ(count_parameters(model->parameters()), 1603757);
 }
 
 TEST(PuDense, UpsampleGivesExactlyRNVoxelCentresNearTheInput) {

@@ -35,9 +35,10 @@ struct PuDenseOptions {
     /// Odd kernel size >= 3 of the generative transposed convolution: new voxels lie within
     /// (K-1)/2 voxels of the stride-2 sites.
     int64_t last_kernel_size = 5;
-    /// Voxels per unit length of the input frame (normalised patches have radius about 1):
-    /// voxel edge h = 1 / resolution. Choose it so that ground-truth points have about one
-    /// voxel each; 24 suits 2,048-point patches.
+    /// Voxels per unit length of the input frame (normalised patches have radius 1): voxel
+    /// edge h = 1 / resolution. About one voxel per ground-truth point spacing: on the x4
+    /// training patches (1,024 GT points, mean spacing 0.053) 86 % of GT points get a voxel of
+    /// their own at 17; 24 is the same for x8.
     double resolution = 24.0;
     /// Points per input patch of the patch pipeline.
     int64_t patch_size = 256;

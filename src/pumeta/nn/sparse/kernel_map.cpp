@@ -16,27 +16,41 @@ at::Tensor to_index_tensor(const std::vector<int64_t>& values) {
     return t;
 }
 
-/// Appends one offset's pairs: output row o (coordinates `out_coords`) reads the input site
-/// at its coordinates + shift, where one exists.
-void append_offset(KernelMap& map, const CoordinateSet& input, const at::Tensor& out_coords,
-                   const std::array<int64_t, 3>& shift) {
-    const int64_t count = out_coords.size(0);
+/// Appends the pairs of every shift: output row o (coordinates `out_coords`) reads the input
+/// site at its coordinates + shift, where one exists. One parallel pass over the outputs for
+/// all shifts (a pass per shift would pay the thread pool's barrier per offset).
+void append_offsets(KernelMap& map, const CoordinateSet& input, const at::Tensor& out_coords,
+                    const std::vector<std::array<int64_t, 3>>& shifts) {
+    const int64_t count = out_coords.size(0), volume = int64_t(shifts.size());
     const int32_t* c = out_coords.data_ptr<int32_t>();
-    std::vector<int64_t> found(count);
-    at::parallel_for(0, count, 2048, [&](int64_t begin, int64_t end) {
+    std::vector<int64_t> found(count * volume);
+    at::parallel_for(0, count, 1024, [&](int64_t begin, int64_t end) {
         for (int64_t o = begin; o < end; ++o) {
             const int32_t* row = c + 4 * o;
-            found[o] = input.find(row[0], row[1] + shift[0], row[2] + shift[1], row[3] + shift[2]);
+            for (int64_t k = 0; k < volume; ++k)
+                found[k * count + o] = input.find(row[0], row[1] + shifts[k][0],
+                                                  row[2] + shifts[k][1], row[3] + shifts[k][2]);
         }
     });
-    std::vector<int64_t> in_rows, out_rows;
-    for (int64_t o = 0; o < count; ++o) {
-        if (found[o] < 0) continue;
-        in_rows.push_back(found[o]);
-        out_rows.push_back(o);
+    for (int64_t k = 0; k < volume; ++k) {
+        std::vector<int64_t> in_rows, out_rows;
+        for (int64_t o = 0; o < count; ++o) {
+            const int64_t i = found[k * count + o];
+            if (i < 0) continue;
+            in_rows.push_back(i);
+            out_rows.push_back(o);
+        }
+        map.in.push_back(to_index_tensor(in_rows));
+        map.out.push_back(to_index_tensor(out_rows));
     }
-    map.in.push_back(to_index_tensor(in_rows));
-    map.out.push_back(to_index_tensor(out_rows));
+}
+
+/// The kernel's offsets times `step`.
+std::vector<std::array<int64_t, 3>> scaled_offsets(int64_t kernel_size, int64_t step) {
+    std::vector<std::array<int64_t, 3>> shifts;
+    for (const auto& offset : kernel_offsets(kernel_size))
+        shifts.push_back({offset[0] * step, offset[1] * step, offset[2] * step});
+    return shifts;
 }
 
 }  // namespace
@@ -101,10 +115,7 @@ void KernelMap::prepare_batched() {
 KernelMap build_conv_map(const CoordinateSet& set, int64_t kernel_size, int64_t dilation) {
     KernelMap map;
     map.input_size = map.output_size = set.size();
-    const int64_t step = dilation * set.stride();
-    for (const auto& offset : kernel_offsets(kernel_size))
-        append_offset(map, set, set.coords(),
-                      {offset[0] * step, offset[1] * step, offset[2] * step});
+    append_offsets(map, set, set.coords(), scaled_offsets(kernel_size, dilation * set.stride()));
     map.identity_offset = map.kernel_volume() / 2;
     map.prepare_batched();
     return map;
@@ -115,10 +126,7 @@ KernelMap build_down_map(const CoordinateSet& fine, const CoordinateSet& coarse,
     KernelMap map;
     map.input_size = fine.size();
     map.output_size = coarse.size();
-    const int64_t step = fine.stride();
-    for (const auto& offset : kernel_offsets(kernel_size))
-        append_offset(map, fine, coarse.coords(),
-                      {offset[0] * step, offset[1] * step, offset[2] * step});
+    append_offsets(map, fine, coarse.coords(), scaled_offsets(kernel_size, fine.stride()));
     map.prepare_batched();
     return map;
 }
