@@ -288,7 +288,7 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
                                         {"id", id},
                                         {"n_in", input.size()},
                                         {"n_gt", gt.size()},
-                                        {"mesh", "../meshes/" + name + ".ply"},
+                                        {"mesh", "../../meshes/" + name + ".ply"},
                                         {"gt_alt", "gt_alt.ply"},
                                         {"noisy_inputs", noisy}};
                 std::lock_guard<std::mutex> lock(cases_mutex);
