@@ -26,6 +26,16 @@ void add_contact_sheet_command(CLI::App& app);
 /// Options shared by commands that read geometry files: --format, --drop-invalid.
 void add_read_options(CLI::App& command, ReadOptions& options);
 
+/// --world-size, --rank, --master of train and meta-train.
+struct DistributedArgs {
+    int64_t world_size = 0;  // 0: not given
+    int64_t rank = -1;       // -1: not given
+    std::string master;
+};
+void add_distributed_options(CLI::App& command, DistributedArgs& args);
+/// Fills config["distributed"]: environment first, then the flags that were given.
+void apply_distributed_args(nlohmann::json& config, const DistributedArgs& args);
+
 /// Prints a JSON value on stdout (one line) — the --json contract.
 void print_json(const nlohmann::json& value);
 

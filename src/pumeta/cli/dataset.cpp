@@ -1,11 +1,12 @@
 // pumeta gen-shapes --count N --seed S -o DIR, and pumeta make-dataset --config C -o DIR.
+#include "pumeta/data/dataset.h"
+
 #include <spdlog/spdlog.h>
 
 #include <filesystem>
 
 #include "pumeta/cli/commands.h"
 #include "pumeta/cli/config_file.h"
-#include "pumeta/data/dataset.h"
 #include "pumeta/data/shapes.h"
 
 namespace pumeta::cli {
@@ -46,8 +47,8 @@ void add_make_dataset_command(CLI::App& app) {
     command->add_option("--set", args->overrides, "override a config field: key=value");
     command->add_option("-o,--output", args->output, "output directory")->required();
     command->callback([args] {
-        nlohmann::json j = args->config.empty() ? nlohmann::json::object()
-                                                : read_json_file(args->config);
+        nlohmann::json j =
+            args->config.empty() ? nlohmann::json::object() : read_json_file(args->config);
         apply_overrides(j, args->overrides);
         nlohmann::json manifest = make_dataset(DatasetConfig::from_json(j), args->output);
         print_json(manifest["counts"]);

@@ -1,9 +1,10 @@
 // pumeta render CLOUD [MORE...] -o out.png: CPU point splatting with depth shading; several
 // clouds make a grid with one shared frame (input / prediction / GT side by side), and
 // --error-to GT colours each point by its distance to GT.
+#include "pumeta/render/render.h"
+
 #include "pumeta/cli/commands.h"
 #include "pumeta/geometry/knn.h"
-#include "pumeta/render/render.h"
 
 namespace pumeta::cli {
 
@@ -41,7 +42,8 @@ void add_render_command(CLI::App& app) {
         options.point_radius = args->point_radius;
         options.frame = fit_frame(clouds.back());  // one frame for all: views line up
         at::Tensor reference;
-        if (!args->error_to.empty()) reference = read_point_cloud(args->error_to, args->read).points;
+        if (!args->error_to.empty())
+            reference = read_point_cloud(args->error_to, args->read).points;
         std::vector<Image> images;
         std::vector<std::string> labels;
         for (size_t i = 0; i < clouds.size(); ++i) {
@@ -123,7 +125,8 @@ void add_contact_sheet_command(CLI::App& app) {
         std::vector<Image> cases;
         std::vector<std::string> case_labels;
         for (const char* set : {"test-indist", "test-scans", "test-humans", "test-aerial"}) {
-            fs::path dir = fs::path(args->dataset) / "cases" / set / fmt::format("x{}", args->ratio);
+            fs::path dir =
+                fs::path(args->dataset) / "cases" / set / fmt::format("x{}", args->ratio);
             if (!fs::exists(dir / "cases.json")) continue;
             auto index = nlohmann::json::parse(std::ifstream(dir / "cases.json"));
             auto list = index["cases"];

@@ -2,7 +2,6 @@
 //              [--world-size W --rank R --master HOST:PORT]
 #include "pumeta/cli/commands.h"
 #include "pumeta/cli/config_file.h"
-#include "pumeta/distributed/process_group.h"
 #include "pumeta/train/trainer.h"
 
 namespace pumeta::cli {
@@ -13,9 +12,7 @@ void add_train_command(CLI::App& app) {
         std::vector<std::string> overrides;
         bool resume = false;
         double max_minutes = 0;
-        int64_t world_size = 0;  // 0, -1, "": not given
-        int64_t rank = -1;
-        std::string master;
+        DistributedArgs distributed;
     };
     auto args = std::make_shared<Args>();
     CLI::App* command = app.add_subcommand("train", "supervised pretraining of a backbone");
@@ -24,21 +21,11 @@ void add_train_command(CLI::App& app) {
     command->add_flag("--resume", args->resume, "continue the run in run_dir from state.ckpt");
     command->add_option("--max-minutes", args->max_minutes,
                         "checkpoint and stop after this many minutes (0 = no limit)");
-    command->add_option("--world-size", args->world_size,
-                        "processes of a distributed run (default: $WORLD_SIZE, else 1)")
-        ->check(CLI::PositiveNumber);
-    command->add_option("--rank", args->rank, "this process's rank (default: $RANK)")
-        ->check(CLI::NonNegativeNumber);
-    command->add_option("--master", args->master,
-                        "HOST:PORT where rank 0 serves the rendezvous (default: "
-                        "$MASTER_ADDR:$MASTER_PORT)");
+    add_distributed_options(*command, args->distributed);
     command->callback([args] {
         nlohmann::json j = read_json_file(args->config);
         apply_overrides(j, args->overrides);
-        apply_distributed_environment(j["distributed"]);
-        if (args->world_size > 0) j["distributed"]["world_size"] = args->world_size;
-        if (args->rank >= 0) j["distributed"]["rank"] = args->rank;
-        if (!args->master.empty()) j["distributed"]["master"] = args->master;
+        apply_distributed_args(j, args->distributed);
         TrainResult result =
             train(TrainConfig::from_json(j), args->resume, args->max_minutes * 60.0);
         print_json({{"steps", result.steps},

@@ -8,7 +8,6 @@
 #include "pumeta/cli/commands.h"
 #include "pumeta/cli/config_file.h"
 #include "pumeta/core/device.h"
-#include "pumeta/distributed/process_group.h"
 #include "pumeta/eval/evaluate_cases.h"
 #include "pumeta/inference/model_file.h"
 #include "pumeta/meta/meta_trainer.h"
@@ -53,14 +52,16 @@ UpsampleOptions make_upsample_options(const ModelArgs& args, const InferenceMode
     o.tta_unit = args.tta_unit;
     o.meta = model.meta;
     o.step_sizes = model.step_sizes;
-    o.tta_steps = args.tta_steps >= 0 ? args.tta_steps
-                                      : (model.meta_trained ? model.meta.inner_steps : 0);
+    o.tta_steps =
+        args.tta_steps >= 0 ? args.tta_steps : (model.meta_trained ? model.meta.inner_steps : 0);
     if (args.tta_lr >= 0) {
         o.meta.inner_lr = args.tta_lr;
         o.step_sizes.clear();
     } else if (!model.meta_trained && o.tta_steps > 0) {
-        spdlog::warn("--tta-steps without --tta-lr on a model that is not meta-trained: using "
-                     "inner_lr {}", o.meta.inner_lr);
+        spdlog::warn(
+            "--tta-steps without --tta-lr on a model that is not meta-trained: using "
+            "inner_lr {}",
+            o.meta.inner_lr);
     }
     return o;
 }
@@ -85,8 +86,9 @@ void add_upsample_command(CLI::App& app) {
     auto args = std::make_shared<Args>();
     CLI::App* command =
         app.add_subcommand("upsample", "upsample a point cloud (with test-time adaptation)");
-    command->add_option("--method", args->method,
-                        "network (the model) or midpoint (non-learned baseline)")
+    command
+        ->add_option("--method", args->method,
+                     "network (the model) or midpoint (non-learned baseline)")
         ->check(CLI::IsMember({"network", "midpoint"}));
     command->add_option("input", args->input, "input cloud (any readable format)")->required();
     command->add_option("-o,--output", args->output, "output cloud")->required();
@@ -107,9 +109,8 @@ void add_upsample_command(CLI::App& app) {
         UpsampleOptions options = make_upsample_options(args->model, model);
         UpsampleResult result = upsample_cloud(*model.backbone, cloud.points, options);
         write_point_cloud(args->output, {result.points});
-        nlohmann::json j = {{"n_in", result.n_in},
-                            {"n_out", result.points.size(0)},
-                            {"seconds", result.seconds}};
+        nlohmann::json j = {
+            {"n_in", result.n_in}, {"n_out", result.points.size(0)}, {"seconds", result.seconds}};
         if (options.tta_steps > 0) {
             j["tta_steps"] = options.tta_steps;
             j["tta_seconds"] = result.tta_seconds;
@@ -119,13 +120,14 @@ void add_upsample_command(CLI::App& app) {
         if (args->json)
             print_json(j);
         else
-            spdlog::info("upsample: {} -> {} points in {:.2f} s{}", result.n_in,
-                         result.points.size(0), result.seconds,
-                         options.tta_steps > 0
-                             ? fmt::format(" (adaptation: {} steps, {:.2f} s, loss {:.3e} -> {:.3e})",
-                                           options.tta_steps, result.tta_seconds,
-                                           result.loss_before, result.loss_after)
-                             : "");
+            spdlog::info(
+                "upsample: {} -> {} points in {:.2f} s{}", result.n_in, result.points.size(0),
+                result.seconds,
+                options.tta_steps > 0
+                    ? fmt::format(" (adaptation: {} steps, {:.2f} s, loss {:.3e} -> {:.3e})",
+                                  options.tta_steps, result.tta_seconds, result.loss_before,
+                                  result.loss_after)
+                    : "");
     });
 }
 
@@ -168,9 +170,7 @@ void add_meta_train_command(CLI::App& app) {
         bool resume = false;
         bool first_order = false;
         double max_minutes = 0;
-        int64_t world_size = 0;  // 0, -1, "": not given
-        int64_t rank = -1;
-        std::string master;
+        DistributedArgs distributed;
     };
     auto args = std::make_shared<Args>();
     CLI::App* command =
@@ -181,22 +181,12 @@ void add_meta_train_command(CLI::App& app) {
     command->add_flag("--first-order", args->first_order, "first-order MAML (FOMAML)");
     command->add_option("--max-minutes", args->max_minutes,
                         "checkpoint and stop after this many minutes (0 = no limit)");
-    command->add_option("--world-size", args->world_size,
-                        "processes of a distributed run (default: $WORLD_SIZE, else 1)")
-        ->check(CLI::PositiveNumber);
-    command->add_option("--rank", args->rank, "this process's rank (default: $RANK)")
-        ->check(CLI::NonNegativeNumber);
-    command->add_option("--master", args->master,
-                        "HOST:PORT where rank 0 serves the rendezvous (default: "
-                        "$MASTER_ADDR:$MASTER_PORT)");
+    add_distributed_options(*command, args->distributed);
     command->callback([args] {
         nlohmann::json j = read_json_file(args->config);
         apply_overrides(j, args->overrides);
         if (args->first_order) j["meta"]["first_order"] = true;
-        apply_distributed_environment(j["distributed"]);
-        if (args->world_size > 0) j["distributed"]["world_size"] = args->world_size;
-        if (args->rank >= 0) j["distributed"]["rank"] = args->rank;
-        if (!args->master.empty()) j["distributed"]["master"] = args->master;
+        apply_distributed_args(j, args->distributed);
         MetaTrainResult r =
             meta_train(MetaTrainConfig::from_json(j), args->resume, args->max_minutes * 60.0);
         print_json({{"steps", r.steps},
