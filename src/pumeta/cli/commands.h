@@ -20,6 +20,8 @@ void add_upsample_command(CLI::App& app);
 /// command_line: the full invocation, recorded in eval summaries.
 void add_eval_command(CLI::App& app, const std::string& command_line);
 void add_meta_train_command(CLI::App& app);
+/// The paper's tables (eval/reproduce.h).
+void add_reproduce_command(CLI::App& app, const std::string& command_line);
 void add_render_command(CLI::App& app);
 void add_contact_sheet_command(CLI::App& app);
 

@@ -52,6 +52,7 @@ nlohmann::json model_info(const std::string& path) {
                            {"config", model.backbone->config()},
                            {"meta_trained", model.meta_trained}};
     if (model.meta_trained) info["meta"] = model.meta.to_json();
+    if (!model.step_sizes.empty()) info["step_sizes"] = step_sizes_to_json(model.step_sizes);
     for (const char* key : {"step", "val_cd", "sampler"})
         if (model.extra.is_object() && model.extra.contains(key)) info[key] = model.extra[key];
     return info;

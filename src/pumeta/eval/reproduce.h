@@ -1,0 +1,55 @@
+// `pumeta reproduce`: the paper's five tables on this repository's data. Every cell comes
+// from one `evaluate_cases` run (the code of `pumeta eval`) whose per-case scores are kept in
+// <out>/runs/...; a run whose spec (cases, method, model hash, options) is unchanged is reused,
+// so an interrupted reproduction resumes where it stopped. Writes <out>/tables.md and
+// <out>/tables.json.
+#pragma once
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace pumeta {
+
+struct ReproduceConfig {
+    std::string dataset_dir = "data/dataset";
+    std::string models_dir = "models";
+    /// Backbones with rows; a backbone without a shipped model for a ratio gets no row.
+    std::vector<std::string> backbones = {"pugcn", "dispu", "pudense"};
+    /// Ratio of Tables I, II, IV and V (the paper's 8×).
+    int64_t main_ratio = 8;
+    /// Ratios of Table III (the paper's 4× and 16×).
+    std::vector<int64_t> table3_ratios = {4, 16};
+    std::vector<std::string> sets = {"test-indist", "test-scans", "test-aerial", "test-humans"};
+    /// Noisy input variants of Table II (keys of the cases' noisy inputs).
+    std::vector<std::string> noise = {"rel0.5", "rel1", "rel2"};
+    /// N of "ours" and of "TTA without meta".
+    int64_t tta_steps = 5;
+    std::string tta_unit = "object";
+    /// N of Table V.
+    std::vector<int64_t> steps_sweep = {1, 3, 5, 7, 9};
+    /// Backbones of Table V (the paper uses Dis-PU).
+    std::vector<std::string> sweep_backbones = {"dispu", "pugcn"};
+    /// Inner step size of "TTA without meta" per backbone, chosen on validation data
+    /// (docs/results.md); a backbone not listed uses its model's inner_lr.
+    std::map<std::string, double> tta_lr_without_meta;
+    /// Seed of the test-time downsampler.
+    uint64_t seed = 0;
+    int64_t bootstrap_resamples = 2000;
+    /// Only the first N cases of each set (0 = all).
+    int64_t max_cases = 0;
+    std::string budget = "full";
+
+    /// `budget` selects the object of j["budgets"] whose fields override the others.
+    static ReproduceConfig from_json(nlohmann::json j, const std::string& budget);
+    nlohmann::json to_json() const;
+};
+
+/// Runs (or reuses) every evaluation the tables need and writes them; returns tables.json.
+nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_dir,
+                         const std::string& command_line);
+
+}  // namespace pumeta
