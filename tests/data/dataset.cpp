@@ -19,33 +19,6 @@ namespace {
 
 namespace fs = std::filesystem;
 
-/// A raw-data tree shaped like get-data.sh's: a furniture catalogue with a chair, a table and
-/// a human figure, CGAL CAD parts, a scanned statue and an aerial scan.
-void make_raw_tree(const fs::path& raw) {
-    fs::path catalogue = raw / "furniture" / "Mini";
-    std::vector<std::tuple<std::string, std::string, std::string>> entries = {
-        {"chair", "Kitchen", ""}, {"table", "Kitchen", ""}, {"lamp", "Lights", ""},
-        {"walker", "Characters", "Human, People"}};
-    fs::create_directories(catalogue);
-    std::ofstream properties(catalogue / "PluginFurnitureCatalog.properties");
-    for (size_t i = 0; i < entries.size(); ++i) {
-        auto [name, category, tags] = entries[i];
-        fs::create_directories(catalogue / "mini" / name);
-        write_mesh((catalogue / "mini" / name / (name + ".obj")).string(), generate_shape(100 + i));
-        properties << "id#" << i + 1 << "=Mini#" << name << "\nname#" << i + 1 << "=" << name
-                   << "\ncategory#" << i + 1 << "=" << category << "\ntags#" << i + 1 << "="
-                   << tags << "\nmodel#" << i + 1 << "=/mini/" << name << "/" << name
-                   << ".obj\n";
-    }
-    fs::path meshes = raw / "cgal" / "data" / "meshes";
-    fs::create_directories(meshes);
-    write_mesh((meshes / "anchor.off").string(), generate_shape(7));
-    write_mesh((meshes / "bunny00.off").string(), generate_shape(8));
-    fs::create_directories(raw / "cgal" / "data" / "points_3");
-    write_point_cloud((raw / "cgal" / "data" / "points_3" / "b9_training.ply").string(),
-                      {test::random_points(2000, 3) * 50.0 + 1000.0});
-}
-
 DatasetConfig tiny_config(const std::string& raw) {
     DatasetConfig config;
     config.raw_dir = raw;
@@ -65,7 +38,7 @@ class DatasetTest : public ::testing::Test {
   protected:
     static void SetUpTestSuite() {
         dir_ = new test::TempDir();
-        make_raw_tree(dir_->path() / "raw");
+        test::make_raw_tree(dir_->path() / "raw");
         manifest_ = new nlohmann::json(
             make_dataset(tiny_config(dir_->file("raw")), dir_->file("out")));
     }

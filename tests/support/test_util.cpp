@@ -7,6 +7,10 @@
 #include <fstream>
 #include <random>
 #include <sstream>
+#include <tuple>
+
+#include "pumeta/data/shapes.h"
+#include "pumeta/geometry/io.h"
 
 namespace pumeta::test {
 
@@ -66,5 +70,30 @@ at::Tensor random_points(int64_t n, uint64_t seed) {
 }
 
 std::string source_dir() { return PUMETA_SOURCE_DIR; }
+
+void make_raw_tree(const fs::path& raw) {
+    fs::path catalogue = raw / "furniture" / "Mini";
+    std::vector<std::tuple<std::string, std::string, std::string>> entries = {
+        {"chair", "Kitchen", ""}, {"table", "Kitchen", ""}, {"lamp", "Lights", ""},
+        {"walker", "Characters", "Human, People"}};
+    fs::create_directories(catalogue);
+    std::ofstream properties(catalogue / "PluginFurnitureCatalog.properties");
+    for (size_t i = 0; i < entries.size(); ++i) {
+        auto [name, category, tags] = entries[i];
+        fs::create_directories(catalogue / "mini" / name);
+        write_mesh((catalogue / "mini" / name / (name + ".obj")).string(), generate_shape(100 + i));
+        properties << "id#" << i + 1 << "=Mini#" << name << "\nname#" << i + 1 << "=" << name
+                   << "\ncategory#" << i + 1 << "=" << category << "\ntags#" << i + 1 << "="
+                   << tags << "\nmodel#" << i + 1 << "=/mini/" << name << "/" << name
+                   << ".obj\n";
+    }
+    fs::path meshes = raw / "cgal" / "data" / "meshes";
+    fs::create_directories(meshes);
+    write_mesh((meshes / "anchor.off").string(), generate_shape(7));
+    write_mesh((meshes / "bunny00.off").string(), generate_shape(8));
+    fs::create_directories(raw / "cgal" / "data" / "points_3");
+    write_point_cloud((raw / "cgal" / "data" / "points_3" / "b9_training.ply").string(),
+                      {random_points(2000, 3) * 50.0 + 1000.0});
+}
 
 }  // namespace pumeta::test

@@ -46,4 +46,9 @@ at::Tensor random_points(int64_t n, uint64_t seed);
 /// Root of the source tree (for fixtures under tests/data).
 std::string source_dir();
 
+/// A raw-data tree shaped like get-data.sh's under `raw`: a furniture catalogue with a chair,
+/// a table, a lamp and a human figure, CGAL CAD parts, a scanned statue and an aerial scan
+/// (all meshes procedural, so the tree is made in milliseconds).
+void make_raw_tree(const std::filesystem::path& raw);
+
 }  // namespace pumeta::test
