@@ -60,6 +60,7 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
     patch_options.coverage = options.coverage;
     Patches patches = extract_patches(cloud, patch_options);
     int64_t num_patches = patches.points.size(0);
+    result.patches += num_patches;
 
     // Test-time adaptation (Algorithm 2): θ' from N steps on L(F_θ(X↓), X).
     ParamMap object_params = model.parameters();

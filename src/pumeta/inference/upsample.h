@@ -44,6 +44,7 @@ struct UpsampleOptions {
 struct UpsampleResult {
     at::Tensor points;  ///< float32 [ratio·N, 3], in the input's frame
     int64_t n_in = 0;
+    int64_t patches = 0;     ///< patches upsampled (all passes)
     double seconds = 0;      ///< total wall time
     double tta_seconds = 0;  ///< of which adaptation
     /// Self-supervised loss L(F(X↓), X) before and after adaptation (NaN without TTA).

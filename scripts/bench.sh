@@ -1,0 +1,95 @@
+#!/usr/bin/env bash
+# Benchmarks with ratios against baselines measured in the same run (medians of 5).
+#   scripts/bench.sh foundation   kNN, Chamfer, FPS, Poisson disk, PLY reading (issue: foundation)
+#   scripts/bench.sh upsample     whole-cloud 2,048 -> 8,192 upsampling, plain vs adaptation
+#   scripts/bench.sh all
+# Run on an idle machine: the script warns when the load average says otherwise. Open3D
+# reference rows need `apt-get install libopen3d-dev` before building (optional).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+what=${1:-all}
+build=${PUMETA_BUILD_DIR:-build}
+out=$(mktemp -d)
+trap 'rm -rf "$out"' EXIT
+load=$(cut -d' ' -f1 /proc/loadavg)
+if awk -v l="$load" 'BEGIN { exit !(l > 0.5) }'; then
+    echo "warning: load average $load: timings are not from an idle machine" >&2
+fi
+run() {  # run NAME BINARY FILTER
+    local binary=$build/$2
+    if [[ ! -x $binary ]]; then
+        echo "($2 not built: skipped)" >&2
+        return
+    fi
+    "$binary" --benchmark_filter="$3" --benchmark_repetitions=5 \
+        --benchmark_report_aggregates_only=true --benchmark_format=json \
+        > "$out/$1.json" 2> /dev/null
+}
+if [[ $what == foundation || $what == all ]]; then
+    run knn bench_geometry_knn 'BM_(KdTree|Nanoflann)(BuildAndQuery|Query)(/[12])?/real_time'
+    run chamfer bench_metrics_chamfer 'BM_Chamfer(Pumeta/threads:1|Nanoflann)$'
+    run sampling bench_geometry_sampling 'BM_(FarthestPointSampling/1|PoissonDisk/[12])/real_time'
+    run io bench_geometry_io 'ReadPly/binary_le/xyz/1M'
+    run open3d bench_reference_open3d '.'
+fi
+if [[ $what == upsample || $what == all ]]; then
+    run upsample bench_inference_upsample '.'
+fi
+python3 - "$out" "$what" <<'PY'
+import json, os, sys
+out, what = sys.argv[1], sys.argv[2]
+medians = {}
+for name in os.listdir(out):
+    with open(os.path.join(out, name)) as f:
+        text = f.read()
+    if not text.strip():
+        continue
+    for b in json.loads(text)["benchmarks"]:
+        if b.get("aggregate_name") == "median":
+            medians[b["run_name"]] = b
+def ms(name):
+    b = medians.get(name)
+    if b is None:
+        return None
+    scale = {"ns": 1e-6, "us": 1e-3, "ms": 1.0, "s": 1e3}[b["time_unit"]]
+    return b["real_time"] * scale
+def row(label, ours, base, base_label):
+    a, b = ms(ours), ms(base)
+    if a is None:
+        print(f"{label:46s} (not run)")
+        return
+    ratio = f"{a / b:5.2f}x {base_label}" if b else "(no baseline in this run)"
+    print(f"{label:46s} {a:10.2f} ms   {ratio}")
+if what in ("foundation", "all"):
+    print("== foundation (median of 5; ratio = pumeta time / baseline time, < 1 is faster)")
+    row("kNN k=16, 100k, build+query, 1 thread", "BM_KdTreeBuildAndQuery/1/real_time",
+        "BM_NanoflannBuildAndQuery/real_time", "nanoflann")
+    row("kNN k=16, 100k, query only, 1 thread", "BM_KdTreeQuery/1/real_time",
+        "BM_NanoflannQuery/real_time", "nanoflann")
+    row("kNN k=16, 100k, build+query, 2 threads", "BM_KdTreeBuildAndQuery/2/real_time",
+        "BM_O3D_KDTreeBuildAndQuery/2/real_time", "Open3D")
+    row("CD 8192 x 8192, 1 thread", "BM_ChamferPumeta/threads:1", "BM_ChamferNanoflann", "nanoflann")
+    row("FPS 8192 -> 2048", "BM_FarthestPointSampling/1/real_time",
+        "BM_O3D_FarthestPointDownSample/real_time", "Open3D")
+    row("Poisson disk 100k on 49.6k triangles, 1 thread", "BM_PoissonDisk/1/real_time",
+        "BM_O3D_SamplePointsPoissonDisk/iterations:1/real_time", "Open3D")
+    row("Poisson disk 100k on 49.6k triangles, 2 threads", "BM_PoissonDisk/2/real_time",
+        "BM_O3D_SamplePointsPoissonDisk/iterations:1/real_time", "Open3D")
+    ply = medians.get("ReadPly/binary_le/xyz/1M/real_time")
+    if ply:
+        print(f"{'read 1M-point binary PLY':46s} {ms('ReadPly/binary_le/xyz/1M/real_time'):10.2f} ms"
+              f"   {ply['bytes_per_second'] / 1e6:.0f} MB/s (target >= 100)")
+if what in ("upsample", "all"):
+    print("== whole-cloud upsampling 2,048 -> 8,192 (median of 5; ratio vs plain in this run)")
+    for threads in (1, 2):
+        plain = f"BM_Upsample/plain/{threads}/real_time"
+        if ms(plain) is None:
+            continue
+        p = medians[plain]
+        print(f"{'plain PU-GCN, ' + str(threads) + ' thread(s)':46s} {ms(plain):10.2f} ms"
+              f"   {p['patches_per_s']:.0f} patches/s (target < 500 ms)")
+        for n in (1, 5):
+            row(f"+ adaptation N={n}, {threads} thread(s)", f"BM_Upsample/tta{n}/{threads}/real_time",
+                plain, "plain (target N=5: <= 3x)")
+        row(f"midpoint baseline, {threads} thread(s)", f"BM_Midpoint/{threads}/real_time", plain, "plain")
+PY
