@@ -154,5 +154,25 @@ TEST(PatchLoader, BatchesAreNormalisedDeterministicAndResumable) {
     EXPECT_TRUE(again.next().gt.equal(first.gt));
 }
 
+TEST_F(DatasetTest, PartialBuildOfSomeSplitsWritesTheSameFilesAsTheFullBuild) {
+    DatasetConfig config = tiny_config(dir_->file("raw"));
+    config.splits = {"test-scans"};
+    fs::path out = dir_->path() / "partial";
+    make_dataset(config, out.string());
+    EXPECT_FALSE(fs::exists(out / "train-x4.tensors"));
+    EXPECT_FALSE(fs::exists(out / "cases" / "test-indist"));
+    EXPECT_FALSE(fs::exists(out / "manifest.json"));
+    EXPECT_TRUE(fs::exists(out / "manifest-test-scans-x4.json"));
+    fs::path partial_index = out / "cases" / "test-scans" / "x4" / "cases.json";
+    fs::path full_index = dir_->path() / "out" / "cases" / "test-scans" / "x4" / "cases.json";
+    ASSERT_TRUE(fs::exists(partial_index));
+    EXPECT_EQ(test::read_file(partial_index.string()), test::read_file(full_index.string()));
+    for (const char* file : {"input.ply", "gt.ply", "gt_alt.ply", "input_rel1.ply"})
+        EXPECT_EQ(test::read_file((out / "cases/test-scans/x4/cgal_bunny00" / file).string()),
+                  test::read_file(
+                      (dir_->path() / "out/cases/test-scans/x4/cgal_bunny00" / file).string()))
+            << file;
+}
+
 }  // namespace
 }  // namespace pumeta

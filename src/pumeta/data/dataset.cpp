@@ -5,6 +5,7 @@
 #include <spdlog/spdlog.h>
 
 #include <atomic>
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -43,6 +44,7 @@ DatasetConfig DatasetConfig::from_json(const nlohmann::json& j) {
         else if (key == "relative_noise") c.relative_noise = value.get<std::vector<double>>();
         else if (key == "absolute_noise") c.absolute_noise = value.get<std::vector<double>>();
         else if (key == "max_models_per_split") c.max_models_per_split = value;
+        else if (key == "splits") c.splits = value.get<std::vector<std::string>>();
         else if (key == "comment") continue;
         else throw_input_error("dataset config", "unknown field '{}'", key);
     }
@@ -67,7 +69,8 @@ nlohmann::json DatasetConfig::to_json() const {
             {"seed", seed},
             {"relative_noise", relative_noise},
             {"absolute_noise", absolute_noise},
-            {"max_models_per_split", max_models_per_split}};
+            {"max_models_per_split", max_models_per_split},
+            {"splits", splits}};
 }
 
 namespace {
@@ -176,6 +179,14 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
         item.split = "train";
         items.push_back(item);
     }
+
+    if (!config.splits.empty())
+        items.erase(std::remove_if(items.begin(), items.end(),
+                                   [&](const Item& item) {
+                                       return std::find(config.splits.begin(), config.splits.end(),
+                                                        item.split) == config.splits.end();
+                                   }),
+                    items.end());
 
     // Training and validation clouds per ratio.
     struct Cloud {
@@ -370,7 +381,14 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
         }
     }
     manifest["counts"] = counts;
-    std::ofstream(fs::path(out_dir) / "manifest.json") << manifest.dump(2) << "\n";
+    std::string manifest_name = "manifest.json";
+    if (!config.splits.empty()) {
+        manifest_name = "manifest";
+        for (const std::string& split : config.splits) manifest_name += "-" + split;
+        for (int64_t r : config.ratios) manifest_name += "-x" + std::to_string(r);
+        manifest_name += ".json";
+    }
+    std::ofstream(fs::path(out_dir) / manifest_name) << manifest.dump(2) << "\n";
     return manifest;
 }
 

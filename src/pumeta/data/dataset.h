@@ -47,6 +47,10 @@ struct DatasetConfig {
     std::vector<double> absolute_noise = {0.01, 0.02};
     /// Limit on real models per split (0 = all): for quick datasets and tests.
     int64_t max_models_per_split = 0;
+    /// Build only these splits (empty = all). Every file is seeded per mesh, split and ratio,
+    /// so a partial build writes exactly the files a full build would; its manifest goes to
+    /// manifest-<splits>-x<ratios>.json instead of manifest.json.
+    std::vector<std::string> splits;
 
     static DatasetConfig from_json(const nlohmann::json& j);
     nlohmann::json to_json() const;

@@ -57,7 +57,11 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
     UpsampleOptions upsample = options.upsample;
     upsample.ratio = ratio;
     fs::create_directories(out_dir);
-    if (options.save_predictions) fs::create_directories(fs::path(out_dir) / "pred");
+    auto saves = [&](size_t i) {
+        return options.save_predictions || static_cast<int64_t>(i) < options.save_first;
+    };
+    if (options.save_predictions || options.save_first > 0)
+        fs::create_directories(fs::path(out_dir) / "pred");
 
     std::vector<nlohmann::json> cases = index.at("cases").get<std::vector<nlohmann::json>>();
     if (options.max_cases > 0 && static_cast<int64_t>(cases.size()) > options.max_cases)
@@ -118,7 +122,7 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
             << csv_number(options.upsample.tta_steps > 0 ? result.tta_seconds : std::nan(""))
             << "," << csv_number(result.loss_before) << "," << csv_number(result.loss_after)
             << "\n";
-        if (options.save_predictions)
+        if (saves(i))
             write_point_cloud((fs::path(out_dir) / "pred" / (c["name"].get<std::string>() + ".ply"))
                                   .string(),
                               {result.points});

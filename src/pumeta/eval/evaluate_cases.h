@@ -22,6 +22,8 @@ struct EvalOptions {
     int64_t max_cases = 0;
     /// Write each prediction as <out_dir>/pred/<case>.ply.
     bool save_predictions = false;
+    /// ... or only those of the first N cases (figures of `pumeta report`).
+    int64_t save_first = 0;
     UpsampleOptions upsample;
     /// Recorded in the summary.
     std::string command_line;

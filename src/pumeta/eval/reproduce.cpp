@@ -149,7 +149,8 @@ class Runner {
                                    {"tta_unit", config_.tta_unit},
                                    {"noise", spec.noise},
                                    {"seed", config_.seed},
-                                   {"max_cases", config_.max_cases}};
+                                   {"max_cases", config_.max_cases},
+                                   {"figure_cases", config_.figure_cases}};
         if (spec.method == "network") identity["model_sha256"] = sha256_file(spec.model);
         fs::path spec_file = dir / "spec.json";
         bool reusable = fs::exists(dir / "cases.csv") && fs::exists(dir / "summary.json") &&
@@ -163,6 +164,7 @@ class Runner {
             options.method = spec.method;
             options.noise = spec.noise;
             options.max_cases = config_.max_cases;
+            options.save_first = config_.figure_cases;
             options.command_line = command_line_;
             InferenceModel model;
             if (spec.method == "network") {
@@ -345,7 +347,7 @@ ReproduceConfig ReproduceConfig::from_json(nlohmann::json j, const std::string& 
         "comment",     "dataset_dir",  "models_dir",  "backbones",           "main_ratio",
         "table3_ratios", "sets",       "noise",       "tta_steps",           "tta_unit",
         "steps_sweep", "sweep_backbones", "tta_lr_without_meta", "seed", "bootstrap_resamples",
-        "max_cases"};
+        "max_cases",   "figure_cases"};
     for (const auto& [key, value] : j.items())
         if (!known.count(key)) throw_input_error(kContext, "unknown field '{}'", key);
     ReproduceConfig c;
@@ -365,6 +367,7 @@ ReproduceConfig ReproduceConfig::from_json(nlohmann::json j, const std::string& 
     read_field(j, "seed", c.seed);
     read_field(j, "bootstrap_resamples", c.bootstrap_resamples);
     read_field(j, "max_cases", c.max_cases);
+    read_field(j, "figure_cases", c.figure_cases);
     if (c.main_ratio < 2) throw_input_error(kContext, "'main_ratio' must be at least 2");
     if (c.tta_steps < 1) throw_input_error(kContext, "'tta_steps' must be positive");
     if (c.tta_unit != "object" && c.tta_unit != "patch")
@@ -389,6 +392,7 @@ nlohmann::json ReproduceConfig::to_json() const {
             {"seed", seed},
             {"bootstrap_resamples", bootstrap_resamples},
             {"max_cases", max_cases},
+            {"figure_cases", figure_cases},
             {"budget", budget}};
 }
 

@@ -41,6 +41,9 @@ struct ReproduceConfig {
     int64_t bootstrap_resamples = 2000;
     /// Only the first N cases of each set (0 = all).
     int64_t max_cases = 0;
+    /// Predictions of the first N cases of every run are kept (runs/.../pred/) for the
+    /// figures of `pumeta report`.
+    int64_t figure_cases = 4;
     std::string budget = "full";
 
     /// `budget` selects the object of j["budgets"] whose fields override the others.
