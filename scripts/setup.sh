@@ -14,6 +14,8 @@ packages=(
     python3
     # Malformed and odd model files for the parser tests.
     assimp-testmodels
+    # The report test opens the HTML report in headless Chromium.
+    chromium
 )
 
 missing=()

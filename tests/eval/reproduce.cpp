@@ -10,10 +10,6 @@
 #include <fstream>
 
 #include "pumeta/core/error.h"
-#include "pumeta/data/dataset.h"
-#include "pumeta/meta/maml.h"
-#include "pumeta/models/backbone.h"
-#include "pumeta/models/checkpoint.h"
 #include "support/test_util.h"
 
 namespace pumeta {
@@ -21,66 +17,24 @@ namespace {
 
 namespace fs = std::filesystem;
 
-std::unique_ptr<Backbone> tiny_pugcn(uint64_t seed) {
-    return make_backbone({{"backbone", "pugcn"},
-                          {"ratio", 4},
-                          {"channels", 4},
-                          {"k", 4},
-                          {"upsample_channels", 4},
-                          {"reconstruction_channels", 4},
-                          {"patch_size", 32},
-                          {"seed", seed}});
-}
-
-void save_meta_model(const std::string& path, uint64_t seed) {
-    MetaOptions meta;
-    meta.inner_steps = 2;
-    meta.inner_lr = 0.01;
-    save_checkpoint(path, *tiny_pugcn(seed), {{"meta", meta.to_json()}});
-}
-
 class ReproduceTest : public ::testing::Test {
   protected:
     static void SetUpTestSuite() {
         dir_ = new test::TempDir();
-        test::make_raw_tree(dir_->path() / "raw");
-        DatasetConfig data;
-        data.raw_dir = dir_->file("raw");
-        data.ratios = {4};
-        data.input_points = 128;
-        data.patch_points = 32;
-        data.patches_per_mesh = 2;
-        data.generated_shapes = 1;
-        data.test_fraction = 0.5;
-        data.val_fraction = 0.0;
-        data.relative_noise = {1.0};
-        data.absolute_noise = {};
-        make_dataset(data, dir_->file("data"));
-        fs::create_directories(dir_->path() / "models");
-        save_checkpoint(dir_->file("models/pugcn-x4.pt"), *tiny_pugcn(1));
-        save_meta_model(dir_->file("models/pugcn-x4-meta.pt"), 2);
+        config_ = new nlohmann::json(test::make_tiny_reproduction(dir_->path()));
     }
-    static void TearDownTestSuite() { delete dir_; }
+    static void TearDownTestSuite() {
+        delete config_;
+        delete dir_;
+    }
 
-    static ReproduceConfig config() {
-        nlohmann::json j = {{"dataset_dir", dir_->file("data")},
-                            {"models_dir", dir_->file("models")},
-                            {"backbones", {"pugcn", "dispu"}},
-                            {"main_ratio", 4},
-                            {"table3_ratios", {4, 16}},
-                            {"sets", {"test-indist", "test-scans"}},
-                            {"noise", {"rel1"}},
-                            {"tta_steps", 2},
-                            {"steps_sweep", {1}},
-                            {"sweep_backbones", {"pugcn"}},
-                            {"tta_lr_without_meta", {{"pugcn", 0.02}}},
-                            {"budgets", {{"quick", {{"max_cases", 2}}}, {"full", nlohmann::json::object()}}}};
-        return ReproduceConfig::from_json(j, "quick");
-    }
+    static ReproduceConfig config() { return ReproduceConfig::from_json(*config_, "quick"); }
 
     static test::TempDir* dir_;
+    static nlohmann::json* config_;
 };
 test::TempDir* ReproduceTest::dir_ = nullptr;
+nlohmann::json* ReproduceTest::config_ = nullptr;
 
 nlohmann::json read_json(const fs::path& file) {
     return nlohmann::json::parse(std::ifstream(file));
@@ -152,7 +106,7 @@ TEST_F(ReproduceTest, ASecondRunReusesUnchangedEvaluationsAndRedoesChangedModels
     fs::path models = dir_->path() / "models";
     fs::path saved = dir_->path() / "meta-backup.pt";
     fs::copy_file(models / "pugcn-x4-meta.pt", saved, fs::copy_options::overwrite_existing);
-    save_meta_model((models / "pugcn-x4-meta.pt").string(), 3);
+    test::save_tiny_meta_model((models / "pugcn-x4-meta.pt").string(), 3);
     reproduce(config(), out.string(), "test");
     fs::copy_file(saved, models / "pugcn-x4-meta.pt", fs::copy_options::overwrite_existing);
     EXPECT_EQ(fs::last_write_time(plain_csv), plain_time);

@@ -9,7 +9,11 @@
 #include <sstream>
 #include <tuple>
 
+#include "pumeta/data/dataset.h"
 #include "pumeta/data/shapes.h"
+#include "pumeta/meta/maml.h"
+#include "pumeta/models/backbone.h"
+#include "pumeta/models/checkpoint.h"
 #include "pumeta/geometry/io.h"
 
 namespace pumeta::test {
@@ -36,8 +40,22 @@ static std::string shell_quote(const std::string& s) {
 }
 
 CommandResult run_cli(const std::vector<std::string>& args) {
+    return run_command(PUMETA_CLI_PATH, args);
+}
+
+std::string find_program(const std::string& name) {
+    const char* path = std::getenv("PATH");
+    std::stringstream dirs(path ? path : "");
+    for (std::string dir; std::getline(dirs, dir, ':');) {
+        fs::path candidate = fs::path(dir.empty() ? "." : dir) / name;
+        if (access(candidate.c_str(), X_OK) == 0) return candidate.string();
+    }
+    return "";
+}
+
+CommandResult run_command(const std::string& program, const std::vector<std::string>& args) {
     TempDir dir;
-    std::string command = shell_quote(PUMETA_CLI_PATH);
+    std::string command = shell_quote(program);
     for (const auto& arg : args) command += " " + shell_quote(arg);
     command += " >" + shell_quote(dir.file("out")) + " 2>" + shell_quote(dir.file("err"));
     int status = std::system(command.c_str());
@@ -94,6 +112,59 @@ void make_raw_tree(const fs::path& raw) {
     fs::create_directories(raw / "cgal" / "data" / "points_3");
     write_point_cloud((raw / "cgal" / "data" / "points_3" / "b9_training.ply").string(),
                       {random_points(2000, 3) * 50.0 + 1000.0});
+}
+
+namespace {
+
+std::unique_ptr<Backbone> tiny_pugcn(uint64_t seed) {
+    return make_backbone({{"backbone", "pugcn"},
+                          {"ratio", 4},
+                          {"channels", 4},
+                          {"k", 4},
+                          {"upsample_channels", 4},
+                          {"reconstruction_channels", 4},
+                          {"patch_size", 32},
+                          {"seed", seed}});
+}
+
+}  // namespace
+
+void save_tiny_meta_model(const std::string& path, uint64_t seed) {
+    MetaOptions meta;
+    meta.inner_steps = 2;
+    meta.inner_lr = 0.01;
+    save_checkpoint(path, *tiny_pugcn(seed), {{"meta", meta.to_json()}});
+}
+
+nlohmann::json make_tiny_reproduction(const fs::path& dir) {
+    make_raw_tree(dir / "raw");
+    DatasetConfig data;
+    data.raw_dir = (dir / "raw").string();
+    data.ratios = {4};
+    data.input_points = 128;
+    data.patch_points = 32;
+    data.patches_per_mesh = 2;
+    data.generated_shapes = 1;
+    data.test_fraction = 0.5;
+    data.val_fraction = 0.0;
+    data.relative_noise = {1.0};
+    data.absolute_noise = {};
+    make_dataset(data, (dir / "data").string());
+    fs::create_directories(dir / "models");
+    save_checkpoint((dir / "models" / "pugcn-x4.pt").string(), *tiny_pugcn(1));
+    save_tiny_meta_model((dir / "models" / "pugcn-x4-meta.pt").string(), 2);
+    return {{"dataset_dir", (dir / "data").string()},
+            {"models_dir", (dir / "models").string()},
+            {"backbones", {"pugcn", "dispu"}},
+            {"main_ratio", 4},
+            {"table3_ratios", {4, 16}},
+            {"sets", {"test-indist", "test-scans"}},
+            {"noise", {"rel1"}},
+            {"tta_steps", 2},
+            {"steps_sweep", {1}},
+            {"sweep_backbones", {"pugcn"}},
+            {"tta_lr_without_meta", {{"pugcn", 0.02}}},
+            {"budgets", {{"quick", {{"max_cases", 2}}}, {"full", nlohmann::json::object()}}}};
 }
 
 }  // namespace pumeta::test

@@ -2,6 +2,7 @@
 #pragma once
 
 #include <ATen/core/Tensor.h>
+#include <nlohmann/json.hpp>
 
 #include <cstdint>
 #include <filesystem>
@@ -31,8 +32,14 @@ struct CommandResult {
     std::string err;
 };
 
-/// Runs the built `pumeta` binary with `args` (no shell quoting needed for plain arguments).
+/// Runs `program` with `args` (quoted for the shell here), capturing stdout and stderr.
+CommandResult run_command(const std::string& program, const std::vector<std::string>& args);
+
+/// Runs the built `pumeta` binary with `args`.
 CommandResult run_cli(const std::vector<std::string>& args);
+
+/// The first executable called `name` on $PATH, or "" when there is none.
+std::string find_program(const std::string& name);
 
 /// Writes `text` to `path` (binary, exactly these bytes).
 void write_file(const std::string& path, const std::string& text);
@@ -50,5 +57,14 @@ std::string source_dir();
 /// a table, a lamp and a human figure, CGAL CAD parts, a scanned statue and an aerial scan
 /// (all meshes procedural, so the tree is made in milliseconds).
 void make_raw_tree(const std::filesystem::path& raw);
+
+/// A miniature reproduction under `dir`: make_raw_tree + a 4× dataset of 128-point inputs in
+/// dir/data and two tiny untrained PU-GCN checkpoints, dir/models/pugcn-x4.pt and
+/// pugcn-x4-meta.pt (meta options: N = 2, α = 0.01). Returns a `pumeta reproduce` config for
+/// it (main ratio 4, sets test-indist and test-scans, a "quick" budget of 2 cases).
+nlohmann::json make_tiny_reproduction(const std::filesystem::path& dir);
+
+/// Overwrites `path` with another tiny meta-trained PU-GCN (weights from `seed`).
+void save_tiny_meta_model(const std::string& path, uint64_t seed);
 
 }  // namespace pumeta::test

@@ -22,6 +22,7 @@ void add_eval_command(CLI::App& app, const std::string& command_line);
 void add_meta_train_command(CLI::App& app);
 /// The paper's tables (eval/reproduce.h).
 void add_reproduce_command(CLI::App& app, const std::string& command_line);
+void add_report_command(CLI::App& app);
 void add_render_command(CLI::App& app);
 void add_contact_sheet_command(CLI::App& app);
 

@@ -48,6 +48,7 @@ int main(int argc, char** argv) {
     for (int i = 1; i < argc; ++i) command_line += std::string(" ") + argv[i];
     pumeta::cli::add_eval_command(app, command_line);
     pumeta::cli::add_reproduce_command(app, command_line);
+    pumeta::cli::add_report_command(app);
 
     try {
         app.parse(argc, argv);

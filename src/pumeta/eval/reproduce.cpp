@@ -63,6 +63,7 @@ struct RunSpec {
 };
 
 struct RunResult {
+    std::string dir;  // relative to the output directory
     bool ok = false;
     std::string error;  // why there are no scores
     std::vector<std::string> cases;
@@ -136,6 +137,7 @@ class Runner {
         auto found = done_.find(key);
         if (found != done_.end()) return found->second;
         RunResult& result = done_[key];
+        result.dir = "runs/" + key;
         fs::path dir = out_dir_ / "runs" / key;
         fs::path cases = cases_dir(spec.set, spec.ratio);
         if (!fs::exists(cases / "cases.json")) {
@@ -258,6 +260,7 @@ class TableWriter {
                     nlohmann::json json_cell = {{"group", groups[g]},
                                                 {"metric", m.column},
                                                 {"mean", std::isfinite(value) ? nlohmann::json(value) : nlohmann::json()}};
+                    if (run) json_cell["run"] = run->dir;
                     if (run && !run->ok) json_cell["missing"] = run->error;
                     if (run && run->ok) json_cell["count"] = run->cases.size();
                     if (run && run->ok && base && base->ok && std::isfinite(value)) {
@@ -402,7 +405,9 @@ nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_d
     Runner runner(config, out_dir, command_line);
     TableWriter writer(config);
     std::ostringstream& md = writer.out();
-    nlohmann::json tables = {{"config", config.to_json()}, {"command", command_line}};
+    nlohmann::json tables = {{"config", config.to_json()},
+                             {"command", command_line},
+                             {"dataset_path", fs::absolute(config.dataset_dir).string()}};
     const int64_t r = config.main_ratio;
     const std::string n_label = "N = " + std::to_string(config.tta_steps);
 

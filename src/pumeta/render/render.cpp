@@ -110,36 +110,6 @@ class Camera {
     double cx_ = 0, cy_ = 0, scale_ = 1, distance_ = 0;
 };
 
-/// Draws `text` (printable ASCII) with stb_easy_font, `scale` pixels per font unit, centred
-/// on x = centre_x, top at y = top, clipped to columns [clip_x0, clip_x1).
-void draw_text(Image& image, const std::string& text, int centre_x, int top, int scale, int clip_x0,
-               int clip_x1) {
-    std::vector<char> chars;
-    for (char c : text) chars.push_back(c >= 32 && c < 127 ? c : '?');
-    chars.push_back('\0');
-    std::vector<char> vertices(300 * chars.size() + 64);
-    int quads = stb_easy_font_print(0, 0, chars.data(), nullptr, vertices.data(),
-                                    static_cast<int>(vertices.size()));
-    int left = centre_x - stb_easy_font_width(chars.data()) * scale / 2;
-    for (int q = 0; q < quads; ++q) {
-        // Each quad is 4 vertices of 16 bytes (x, y, z floats, RGBA), an axis-aligned rectangle.
-        const char* quad = vertices.data() + 64 * q;
-        float x0 = std::numeric_limits<float>::max(), y0 = x0, x1 = -x0, y1 = -x0;
-        for (int v = 0; v < 4; ++v) {
-            float x, y;
-            std::memcpy(&x, quad + 16 * v, sizeof(float));
-            std::memcpy(&y, quad + 16 * v + 4, sizeof(float));
-            x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
-        }
-        int px0 = std::max(left + static_cast<int>(std::lround(x0 * scale)), clip_x0);
-        int px1 = std::min(left + static_cast<int>(std::lround(x1 * scale)), clip_x1);
-        int py0 = std::max(top + static_cast<int>(std::lround(y0 * scale)), 0);
-        int py1 = std::min(top + static_cast<int>(std::lround(y1 * scale)), image.height);
-        for (int y = py0; y < py1; ++y)
-            for (int x = px0; x < px1; ++x) std::fill_n(image.pixel(x, y), 3, uint8_t{30});
-    }
-}
-
 // Viridis sampled at 10 points (matplotlib's map, CC0); linear in between.
 constexpr std::array<std::array<float, 4>, 10> kViridis{{
     {0.0f, 0.267f, 0.005f, 0.329f},
@@ -163,6 +133,50 @@ void viridis(double t, float* rgb) {
 }
 
 }  // namespace
+
+namespace {
+
+std::vector<char> font_chars(const std::string& text) {
+    std::vector<char> chars;
+    for (char c : text) chars.push_back(c >= 32 && c < 127 ? c : '?');
+    chars.push_back('\0');
+    return chars;
+}
+
+}  // namespace
+
+int text_width(const std::string& text, int scale) {
+    std::vector<char> chars = font_chars(text);
+    return stb_easy_font_width(chars.data()) * scale;
+}
+
+void draw_text(Image& image, const std::string& text, int centre_x, int top, int scale,
+               std::array<uint8_t, 3> color, int clip_x0, int clip_x1) {
+    if (clip_x1 < 0 || clip_x1 > image.width) clip_x1 = image.width;
+    clip_x0 = std::max(clip_x0, 0);
+    std::vector<char> chars = font_chars(text);
+    std::vector<char> vertices(300 * chars.size() + 64);
+    int quads = stb_easy_font_print(0, 0, chars.data(), nullptr, vertices.data(),
+                                    static_cast<int>(vertices.size()));
+    int left = centre_x - stb_easy_font_width(chars.data()) * scale / 2;
+    for (int q = 0; q < quads; ++q) {
+        // Each quad is 4 vertices of 16 bytes (x, y, z floats, RGBA), an axis-aligned rectangle.
+        const char* quad = vertices.data() + 64 * q;
+        float x0 = std::numeric_limits<float>::max(), y0 = x0, x1 = -x0, y1 = -x0;
+        for (int v = 0; v < 4; ++v) {
+            float x, y;
+            std::memcpy(&x, quad + 16 * v, sizeof(float));
+            std::memcpy(&y, quad + 16 * v + 4, sizeof(float));
+            x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
+        }
+        int px0 = std::max(left + static_cast<int>(std::lround(x0 * scale)), clip_x0);
+        int px1 = std::min(left + static_cast<int>(std::lround(x1 * scale)), clip_x1);
+        int py0 = std::max(top + static_cast<int>(std::lround(y0 * scale)), 0);
+        int py1 = std::min(top + static_cast<int>(std::lround(y1 * scale)), image.height);
+        for (int y = py0; y < py1; ++y)
+            for (int x = px0; x < px1; ++x) std::copy(color.begin(), color.end(), image.pixel(x, y));
+    }
+}
 
 Image::Image(int width, int height, std::array<uint8_t, 3> fill) : width(width), height(height) {
     if (width < 0 || height < 0) throw_input_error("Image", "negative size {}x{}", width, height);
@@ -306,7 +320,7 @@ Image render_grid(const std::vector<Image>& images, int columns,
             std::copy_n(image.pixel(0, y), 3 * image.width, sheet.pixel(ox, oy + y));
         if (i < static_cast<int>(labels.size()) && !labels[i].empty())
             draw_text(sheet, labels[i], x0 + cell_width / 2, y0 + cell_height + 2 * text_scale,
-                      text_scale, x0, x0 + cell_width);
+                      text_scale, {30, 30, 30}, x0, x0 + cell_width);
     }
     return sheet;
 }

@@ -91,6 +91,14 @@ void render_points(const at::Tensor& points, const std::string& png_path,
 Image render_grid(const std::vector<Image>& images, int columns,
                   const std::vector<std::string>& labels = {}, int gap = 4);
 
+/// Draws printable-ASCII `text` with stb_easy_font, `scale` pixels per font unit, centred on
+/// x = centre_x with its top at y = top, clipped to columns [clip_x0, clip_x1) (-1: the width).
+void draw_text(Image& image, const std::string& text, int centre_x, int top, int scale,
+               std::array<uint8_t, 3> color = {30, 30, 30}, int clip_x0 = 0, int clip_x1 = -1);
+
+/// Width in pixels of `text` drawn by draw_text at `scale`.
+int text_width(const std::string& text, int scale);
+
 /// Writes an 8-bit RGB PNG, atomically (temporary file, then rename). InputError when the
 /// image is malformed or the file cannot be written.
 void write_png(const std::string& path, const Image& image);
