@@ -174,5 +174,17 @@ TEST_F(DatasetTest, PartialBuildOfSomeSplitsWritesTheSameFilesAsTheFullBuild) {
             << file;
 }
 
+TEST_F(DatasetTest, InfoDescribesAPatchSet) {
+    std::string file = dir_->file("out/train-x4.tensors");
+    PatchSet set = load_patch_set(file);
+    test::CommandResult r = test::run_cli({"info", file, "--json"});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    nlohmann::json info = nlohmann::json::parse(r.out);
+    EXPECT_EQ(info["kind"], "patch set");
+    EXPECT_EQ(info["meshes"], set.num_meshes());
+    EXPECT_EQ(info["patches"], set.num_patches());
+    EXPECT_EQ(info["generated_meshes"], 2);  // tiny_config: two generated shapes, all in train
+}
+
 }  // namespace
 }  // namespace pumeta

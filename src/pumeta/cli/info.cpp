@@ -4,6 +4,7 @@
 #include <iostream>
 
 #include "pumeta/cli/commands.h"
+#include "pumeta/data/patch_set.h"
 #include "pumeta/inference/model_file.h"
 
 namespace pumeta::cli {
@@ -58,8 +59,27 @@ nlohmann::json model_info(const std::string& path) {
     return info;
 }
 
+bool is_patch_set_file(const std::string& path) {
+    auto dot = path.find_last_of('.');
+    return dot != std::string::npos && path.substr(dot) == ".tensors";
+}
+
+nlohmann::json patch_set_info(const std::string& path) {
+    PatchSet set = load_patch_set(path);
+    int64_t generated = 0;
+    for (const std::string& id : set.ids) generated += id.rfind("generator/", 0) == 0;
+    return {{"file", path},
+            {"kind", "patch set"},
+            {"ratio", set.ratio},
+            {"patch_points", set.patch_points},
+            {"meshes", set.num_meshes()},
+            {"generated_meshes", generated},
+            {"patches", set.num_patches()},
+            {"points", set.points.size(0)}};
+}
+
 void print_text(const nlohmann::json& info) {
-    if (info["kind"] == "model") {
+    if (info["kind"] == "model" || info["kind"] == "patch set") {
         std::cout << info.dump(2) << "\n";
         return;
     }
@@ -83,12 +103,13 @@ void print_text(const nlohmann::json& info) {
 void add_info_command(CLI::App& app) {
     auto args = std::make_shared<InfoArgs>();
     CLI::App* command = app.add_subcommand("info", "counts, bounds and properties of a file");
-    command->add_option("file", args->path, "point cloud, mesh or model file")->required();
+    command->add_option("file", args->path, "point cloud, mesh, model (.pt) or patch set (.tensors) file")->required();
     command->add_flag("--json", args->json, "one JSON object on stdout");
     add_read_options(*command, args->read);
     command->callback([args] {
-        nlohmann::json info = is_model_file(args->path) ? model_info(args->path)
-                                                        : geometry_info(args->path, args->read);
+        nlohmann::json info = is_model_file(args->path)       ? model_info(args->path)
+                              : is_patch_set_file(args->path) ? patch_set_info(args->path)
+                                                              : geometry_info(args->path, args->read);
         if (args->json)
             print_json(info);
         else

@@ -2,6 +2,7 @@
 // or usage, 1 internal failure.
 #include <ATen/Parallel.h>
 #include <malloc.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
 #include <CLI/CLI.hpp>
@@ -28,6 +29,8 @@ int main(int argc, char** argv) {
     app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off")
         ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "off"}));
     app.parse_complete_callback([&] {
+        // Logs and progress go to stderr; stdout carries results (--json, tables).
+        spdlog::set_default_logger(spdlog::stderr_color_mt("pumeta"));
         spdlog::set_level(spdlog::level::from_str(log_level));
         spdlog::set_pattern("%^[%l]%$ %v");
         if (threads > 0) at::set_num_threads(threads);
