@@ -16,6 +16,8 @@ packages=(
     assimp-testmodels
     # The report test opens the HTML report in headless Chromium.
     chromium
+    # CGAL (GPL-3, header-only) for the optional pumeta-ear baseline program only.
+    libcgal-dev
 )
 
 missing=()

@@ -79,6 +79,11 @@ TEST_F(ReproduceTest, WritesEveryTableWithCellsEqualToTheEvalSummaries) {
     EXPECT_TRUE(fs::exists(out / "runs/test-indist-x4/pugcn-x4.tta2.lr0.02/cases.csv"));
     EXPECT_EQ(row(tables.at("table5"), "PU-GCN, plain")["cells"][2]["metric"], "seconds");
 
+    // The external baseline "copy" returns the input (through XYZ files): the input's scores.
+    const double input_cd = row(tables.at("table1"), "input, unchanged")["cells"][0]["mean"];
+    EXPECT_NEAR(row(tables.at("table1"), "copy")["cells"][0]["mean"].get<double>(), input_cd,
+                1e-5 * input_cd);
+
     // 16× has no cases in this dataset; Dis-PU has no model: both reported, not invented.
     const nlohmann::json& t3 = row(tables.at("table3"), "PU-GCN");
     EXPECT_TRUE(t3["cells"][2]["mean"].is_null());
@@ -88,6 +93,11 @@ TEST_F(ReproduceTest, WritesEveryTableWithCellsEqualToTheEvalSummaries) {
     for (const auto& note : tables.at("missing"))
         dispu_missing |= note.get<std::string>().find("Dis-PU at 4×: no model") != std::string::npos;
     EXPECT_TRUE(dispu_missing);
+    bool absent_missing = false;
+    for (const auto& note : tables.at("missing"))
+        absent_missing |= note.get<std::string>().find("absent: /nonexistent/upsampler is not built") !=
+                          std::string::npos;
+    EXPECT_TRUE(absent_missing);
 }
 
 TEST_F(ReproduceTest, ASecondRunReusesUnchangedEvaluationsAndRedoesChangedModels) {

@@ -43,6 +43,11 @@ CommandResult run_cli(const std::vector<std::string>& args) {
     return run_command(PUMETA_CLI_PATH, args);
 }
 
+std::string built_program(const std::string& name) {
+    fs::path program = fs::path(PUMETA_CLI_PATH).parent_path() / name;
+    return access(program.c_str(), X_OK) == 0 ? program.string() : "";
+}
+
 std::string find_program(const std::string& name) {
     const char* path = std::getenv("PATH");
     std::stringstream dirs(path ? path : "");
@@ -156,6 +161,9 @@ nlohmann::json make_tiny_reproduction(const fs::path& dir) {
     return {{"dataset_dir", (dir / "data").string()},
             {"models_dir", (dir / "models").string()},
             {"backbones", {"pugcn", "dispu"}},
+            {"external_baselines",
+             {{{"label", "copy"}, {"command", "cp {input} {output}"}},
+              {{"label", "absent"}, {"command", "/nonexistent/upsampler {input} {output}"}}}},
             {"main_ratio", 4},
             {"table3_ratios", {4, 16}},
             {"sets", {"test-indist", "test-scans"}},

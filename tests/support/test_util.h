@@ -38,6 +38,9 @@ CommandResult run_command(const std::string& program, const std::vector<std::str
 /// Runs the built `pumeta` binary with `args`.
 CommandResult run_cli(const std::vector<std::string>& args);
 
+/// A program built beside the `pumeta` binary (e.g. "pumeta-ear"), or "" when it is not built.
+std::string built_program(const std::string& name);
+
 /// The first executable called `name` on $PATH, or "" when there is none.
 std::string find_program(const std::string& name);
 
@@ -61,7 +64,8 @@ void make_raw_tree(const std::filesystem::path& raw);
 /// A miniature reproduction under `dir`: make_raw_tree + a 4× dataset of 128-point inputs in
 /// dir/data and two tiny untrained PU-GCN checkpoints, dir/models/pugcn-x4.pt and
 /// pugcn-x4-meta.pt (meta options: N = 2, α = 0.01). Returns a `pumeta reproduce` config for
-/// it (main ratio 4, sets test-indist and test-scans, a "quick" budget of 2 cases).
+/// it (main ratio 4, sets test-indist and test-scans, a "quick" budget of 2 cases, external
+/// baselines "copy" = `cp {input} {output}` and "absent" = a program that does not exist).
 nlohmann::json make_tiny_reproduction(const std::filesystem::path& dir);
 
 /// Overwrites `path` with another tiny meta-trained PU-GCN (weights from `seed`).

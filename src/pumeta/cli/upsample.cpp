@@ -144,8 +144,11 @@ void add_eval_command(CLI::App& app, const std::string& command_line) {
         ->required();
     command->add_option("-o,--output", args->output, "output directory (cases.csv, summary.json)")
         ->required();
-    command->add_option("--method", args->eval.method, "network, midpoint, input or floor")
-        ->check(CLI::IsMember({"network", "midpoint", "input", "floor"}));
+    command->add_option("--method", args->eval.method, "network, midpoint, input, floor or external")
+        ->check(CLI::IsMember({"network", "midpoint", "input", "floor", "external"}));
+    command->add_option("--command", args->eval.external_command,
+                        "method external: shell command with {input}, {output} (XYZ files) and "
+                        "{ratio}, e.g. \"build/pumeta-ear {input} {output} --ratio {ratio}\"");
     command->add_option("--noise", args->eval.noise, "noisy input variant (rel1, abs0.01, ...)");
     command->add_option("--max-cases", args->eval.max_cases, "only the first N cases");
     command->add_flag("--save-predictions", args->eval.save_predictions,

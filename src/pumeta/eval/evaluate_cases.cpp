@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 
@@ -37,6 +38,42 @@ struct Stats {
 };
 
 std::string csv_number(double v) { return std::isfinite(v) ? fmt::format("{:.9g}", v) : ""; }
+
+std::string shell_quote(const std::string& text) {
+    std::string quoted = "'";
+    for (char c : text) quoted += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return quoted + "'";
+}
+
+void replace_all(std::string& text, const std::string& key, const std::string& value) {
+    for (size_t at = text.find(key); at != std::string::npos; at = text.find(key, at + value.size()))
+        text.replace(at, key.size(), value);
+}
+
+/// Runs an external upsampler on `input` through XYZ files in `work_dir`.
+at::Tensor run_external(const std::string& command_template, const at::Tensor& input,
+                        int64_t ratio, const fs::path& work_dir, const std::string& name) {
+    fs::create_directories(work_dir);
+    fs::path in = work_dir / (name + ".in.xyz"), out = work_dir / (name + ".out.xyz");
+    write_point_cloud(in.string(), {input});
+    std::string command = command_template;
+    replace_all(command, "{input}", shell_quote(in.string()));
+    replace_all(command, "{output}", shell_quote(out.string()));
+    replace_all(command, "{ratio}", std::to_string(ratio));
+    int status = std::system((command + " 2>" + shell_quote((work_dir / "stderr.txt").string()))
+                                 .c_str());
+    fs::remove(in);
+    if (status != 0 || !fs::exists(out)) {
+        std::ifstream err(work_dir / "stderr.txt");
+        std::string first_line;
+        std::getline(err, first_line);
+        throw_input_error(name, "external upsampler failed (status {}): {}: {}", status, command,
+                          first_line);
+    }
+    at::Tensor points = read_point_cloud(out.string()).points;
+    fs::remove(out);
+    return points;
+}
 
 }  // namespace
 
@@ -93,6 +130,12 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
             result = upsample_cloud(*model, input, upsample);
         } else if (options.method == "midpoint") {
             result.points = midpoint_upsample(input, ratio);
+        } else if (options.method == "external") {
+            if (options.external_command.empty())
+                throw_input_error("eval", "method 'external' needs a command");
+            result.points = run_external(options.external_command, input, ratio,
+                                         fs::path(out_dir) / "external",
+                                         c["name"].get<std::string>());
         } else if (options.method == "input") {
             result.points = input;
         } else if (options.method == "floor") {
@@ -131,11 +174,13 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
     progress.finish();
     csv.close();
     fs::rename(csv_tmp, fs::path(out_dir) / "cases.csv");
+    fs::remove_all(fs::path(out_dir) / "external");
 
     nlohmann::json summary = {{"cases_dir", cases_dir},
                               {"set", index.value("set", "")},
                               {"ratio", ratio},
                               {"method", options.method},
+                              {"external_command", options.external_command},
                               {"noise", options.noise},
                               {"count", cases.size()},
                               {"cd", cd.summary()},

@@ -14,8 +14,12 @@ namespace pumeta {
 struct EvalOptions {
     /// "network" (the model), "midpoint" (non-learned baseline), "input" (the input itself,
     /// unchanged: the reference any method must beat), "floor" (a second independent GT sample:
-    /// the sampling floor; cases with gt_alt only).
+    /// the sampling floor; cases with gt_alt only), "external" (another program, see
+/// external_command).
     std::string method = "network";
+    /// Method "external": a shell command upsampling {input} (an XYZ file) into {output} (XYZ)
+    /// by {ratio}; e.g. "build/pumeta-ear {input} {output} --ratio {ratio}".
+    std::string external_command;
     /// Input variant: "" = clean, or a key of the case's noisy inputs ("rel1", "abs0.01").
     std::string noise;
     /// Evaluate only the first max_cases cases (0 = all).

@@ -2,7 +2,10 @@
 
 #include <spdlog/spdlog.h>
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -52,9 +55,14 @@ struct RunSpec {
     int64_t tta_steps = 0;
     double tta_lr = -1;  // < 0: the model's own step sizes
     std::string noise;   // "" = clean input
+    std::string label, command;  // external: the baseline's label and command
 
     std::string directory() const {
         std::string name = method == "network" ? fs::path(model).stem().string() : method;
+        if (method == "external") {
+            name = "external-";
+            for (char c : label) name += std::isalnum(static_cast<unsigned char>(c)) ? char(std::tolower(c)) : '-';
+        }
         if (method == "network") name += tta_steps > 0 ? ".tta" + std::to_string(tta_steps) : "";
         if (tta_lr >= 0) name += fmt::format(".lr{:g}", tta_lr);
         std::string cases = set + "-x" + std::to_string(ratio) + (noise.empty() ? "" : "-" + noise);
@@ -154,6 +162,7 @@ class Runner {
                                    {"max_cases", config_.max_cases},
                                    {"figure_cases", config_.figure_cases}};
         if (spec.method == "network") identity["model_sha256"] = sha256_file(spec.model);
+        if (spec.method == "external") identity["command"] = spec.command;
         fs::path spec_file = dir / "spec.json";
         bool reusable = fs::exists(dir / "cases.csv") && fs::exists(dir / "summary.json") &&
                         fs::exists(spec_file) &&
@@ -164,6 +173,7 @@ class Runner {
             fs::remove_all(dir);
             EvalOptions options;
             options.method = spec.method;
+            options.external_command = spec.command;
             options.noise = spec.noise;
             options.max_cases = config_.max_cases;
             options.save_first = config_.figure_cases;
@@ -350,7 +360,7 @@ ReproduceConfig ReproduceConfig::from_json(nlohmann::json j, const std::string& 
         "comment",     "dataset_dir",  "models_dir",  "backbones",           "main_ratio",
         "table3_ratios", "sets",       "noise",       "tta_steps",           "tta_unit",
         "steps_sweep", "sweep_backbones", "tta_lr_without_meta", "seed", "bootstrap_resamples",
-        "max_cases",   "figure_cases"};
+        "max_cases",   "figure_cases", "external_baselines"};
     for (const auto& [key, value] : j.items())
         if (!known.count(key)) throw_input_error(kContext, "unknown field '{}'", key);
     ReproduceConfig c;
@@ -371,6 +381,17 @@ ReproduceConfig ReproduceConfig::from_json(nlohmann::json j, const std::string& 
     read_field(j, "bootstrap_resamples", c.bootstrap_resamples);
     read_field(j, "max_cases", c.max_cases);
     read_field(j, "figure_cases", c.figure_cases);
+    if (j.contains("external_baselines")) {
+        if (!j["external_baselines"].is_array())
+            throw_input_error(kContext, "'external_baselines' must be an array");
+        for (const nlohmann::json& b : j["external_baselines"]) {
+            if (!b.is_object() || !b.contains("label") || !b.contains("command") ||
+                !b["label"].is_string() || !b["command"].is_string())
+                throw_input_error(kContext,
+                                  "each external baseline needs a 'label' and a 'command' string");
+            c.external_baselines.push_back({b["label"], b["command"]});
+        }
+    }
     if (c.main_ratio < 2) throw_input_error(kContext, "'main_ratio' must be at least 2");
     if (c.tta_steps < 1) throw_input_error(kContext, "'tta_steps' must be positive");
     if (c.tta_unit != "object" && c.tta_unit != "patch")
@@ -396,6 +417,13 @@ nlohmann::json ReproduceConfig::to_json() const {
             {"bootstrap_resamples", bootstrap_resamples},
             {"max_cases", max_cases},
             {"figure_cases", figure_cases},
+            {"external_baselines",
+             [&] {
+                 nlohmann::json a = nlohmann::json::array();
+                 for (const ExternalBaseline& b : external_baselines)
+                     a.push_back({{"label", b.label}, {"command", b.command}});
+                 return a;
+             }()},
             {"budget", budget}};
 }
 
@@ -471,6 +499,28 @@ nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_d
         reference_row("input, unchanged", "input");
         reference_row("sampling floor (2nd GT sample)", "floor");
         reference_row("midpoint baseline", "midpoint");
+        for (const ExternalBaseline& baseline : config.external_baselines) {
+            std::string command = baseline.command;
+            std::string bindir = fs::read_symlink("/proc/self/exe").parent_path().string();
+            for (size_t at = command.find("{bindir}"); at != std::string::npos;
+                 at = command.find("{bindir}", at + bindir.size()))
+                command.replace(at, 8, bindir);
+            std::string program = command.substr(0, command.find(' '));
+            // A bare program name is left to the shell's PATH lookup.
+            if (program.find('/') != std::string::npos && access(program.c_str(), X_OK) != 0) {
+                notes.push_back(fmt::format("{}: {} is not built or not executable (no row)",
+                                            baseline.label, program));
+                continue;
+            }
+            TableWriter::Row row{baseline.label, {}, {}};
+            for (const std::string& set : config.sets) {
+                RunSpec s = spec(set, r, "external");
+                s.label = baseline.label;
+                s.command = command;
+                row.runs.push_back(&runner.get(s));
+            }
+            rows.push_back(row);
+        }
         for (const std::string& backbone : config.backbones) {
             auto [plain, meta] = models(backbone, r);
             if (!plain) continue;

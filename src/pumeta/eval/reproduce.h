@@ -14,11 +14,21 @@
 
 namespace pumeta {
 
+/// A non-pumeta upsampler run through `pumeta eval --method external`.
+struct ExternalBaseline {
+    std::string label;
+    /// Shell command with {input}, {output} (XYZ files), {ratio}, and {bindir} (the directory
+    /// of the running program, where `pumeta-ear` is built).
+    std::string command;
+};
+
 struct ReproduceConfig {
     std::string dataset_dir = "data/dataset";
     std::string models_dir = "models";
     /// Backbones with rows; a backbone without a shipped model for a ratio gets no row.
     std::vector<std::string> backbones = {"pugcn", "dispu", "pudense"};
+    /// Classical baselines of Table I (rows only where the program exists).
+    std::vector<ExternalBaseline> external_baselines;
     /// Ratio of Tables I, II, IV and V (the paper's 8×).
     int64_t main_ratio = 8;
     /// Ratios of Table III (the paper's 4× and 16×).
