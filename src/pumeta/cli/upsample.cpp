@@ -107,6 +107,7 @@ void add_upsample_command(CLI::App& app) {
         }
         InferenceModel model = load_model(args->model);
         UpsampleOptions options = make_upsample_options(args->model, model);
+        options.show_progress = true;
         UpsampleResult result = upsample_cloud(*model.backbone, cloud.points, options);
         write_point_cloud(args->output, {result.points});
         nlohmann::json j = {

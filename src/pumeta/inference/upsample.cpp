@@ -5,9 +5,11 @@
 
 #include <chrono>
 #include <cmath>
+#include <optional>
 #include <random>
 
 #include "pumeta/core/error.h"
+#include "pumeta/core/progress.h"
 #include "pumeta/core/tensor_checks.h"
 #include "pumeta/geometry/knn.h"
 #include "pumeta/geometry/normalize.h"
@@ -91,7 +93,10 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
 
     std::vector<at::Tensor> outputs;
     double before_sum = 0, after_sum = 0;
+    std::optional<ProgressBar> progress;
+    if (options.show_progress) progress.emplace(num_patches, fmt::format("upsample x{}", r));
     for (int64_t start = 0; start < num_patches; start += options.batch_patches) {
+        if (progress) progress->update(start, fmt::format("{} patches", num_patches));
         int64_t end = std::min(num_patches, start + options.batch_patches);
         at::Tensor chunk = patches.points.slice(0, start, end);
         if (options.tta_steps > 0 && options.tta_unit == "patch") {
@@ -110,6 +115,7 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
         at::NoGradGuard no_grad;
         outputs.push_back(model.upsample(chunk, object_params));
     }
+    if (progress) progress->finish();
     if (options.tta_steps > 0 && options.tta_unit == "patch") {
         result.loss_before = before_sum / num_patches;
         result.loss_after = after_sum / num_patches;

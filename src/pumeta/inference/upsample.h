@@ -39,6 +39,9 @@ struct UpsampleOptions {
     /// Above this many candidate points, duplicates are removed by patch ownership instead of
     /// farthest point sampling (which is quadratic).
     int64_t fps_merge_limit = 300000;
+    /// A progress bar over the patch batches on a terminal (`pumeta upsample`; off inside
+    /// `pumeta eval`, which has its own).
+    bool show_progress = false;
 };
 
 struct UpsampleResult {
