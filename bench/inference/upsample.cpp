@@ -46,9 +46,7 @@ void BM_Upsample(benchmark::State& state, int64_t tta_steps) {
     }
     UpsampleOptions options;
     options.tta_steps = tta_steps;
-    options.meta = used->meta;
-    options.step_sizes = used->step_sizes;
-    if (!used->meta_trained) options.meta.inner_lr = 0.03;
+    set_adaptation(options, *used, used->meta_trained ? -1 : 0.03);
     int64_t patches = 0;
     for (auto _ : state) {
         UpsampleResult result = upsample_cloud(*used->backbone, input_cloud(), options);

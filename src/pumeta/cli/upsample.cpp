@@ -50,14 +50,10 @@ UpsampleOptions make_upsample_options(const ModelArgs& args, const InferenceMode
     o.seed = args.seed;
     o.batch_patches = args.batch_patches;
     o.tta_unit = args.tta_unit;
-    o.meta = model.meta;
-    o.step_sizes = model.step_sizes;
+    set_adaptation(o, model, args.tta_lr);
     o.tta_steps =
         args.tta_steps >= 0 ? args.tta_steps : (model.meta_trained ? model.meta.inner_steps : 0);
-    if (args.tta_lr >= 0) {
-        o.meta.inner_lr = args.tta_lr;
-        o.step_sizes.clear();
-    } else if (!model.meta_trained && o.tta_steps > 0) {
+    if (args.tta_lr < 0 && !model.meta_trained && o.tta_steps > 0) {
         spdlog::warn(
             "--tta-steps without --tta-lr on a model that is not meta-trained: using "
             "inner_lr {}",

@@ -8,6 +8,7 @@
 #include <cctype>
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <fstream>
 #include <optional>
 #include <set>
@@ -181,12 +182,7 @@ class Runner {
             InferenceModel model;
             if (spec.method == "network") {
                 model = load_inference_model(spec.model);
-                options.upsample.meta = model.meta;
-                options.upsample.step_sizes = model.step_sizes;
-                if (spec.tta_lr >= 0) {
-                    options.upsample.meta.inner_lr = spec.tta_lr;
-                    options.upsample.step_sizes.clear();
-                }
+                set_adaptation(options.upsample, model, spec.tta_lr);
             }
             options.upsample.seed = config_.seed;
             options.upsample.tta_steps = spec.tta_steps;
@@ -455,6 +451,12 @@ nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_d
         s.noise = noise;
         return &runner.get(s);
     };
+    // One run per set of config.sets (the column groups of Tables I and IV).
+    auto per_set = [&](const std::function<const RunResult*(const std::string&)>& run) {
+        std::vector<const RunResult*> runs;
+        for (const std::string& set : config.sets) runs.push_back(run(set));
+        return runs;
+    };
     std::vector<std::string> notes;
     auto models = [&](const std::string& backbone, int64_t ratio) {
         auto plain = runner.model_file(backbone, ratio, false);
@@ -492,9 +494,10 @@ nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_d
            << "Data: " << counts_line(runner, config.sets, r, spec("", r, "input")) << ".\n\n";
         std::vector<TableWriter::Row> rows;
         auto reference_row = [&](const std::string& label, const std::string& method) {
-            TableWriter::Row row{label, {}, {}};
-            for (const std::string& set : config.sets) row.runs.push_back(&runner.get(spec(set, r, method)));
-            rows.push_back(row);
+            rows.push_back({label, per_set([&](const std::string& set) {
+                                return &runner.get(spec(set, r, method));
+                            }),
+                            {}});
         };
         reference_row("input, unchanged", "input");
         reference_row("sampling floor (2nd GT sample)", "floor");
@@ -512,26 +515,28 @@ nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_d
                                             baseline.label, program));
                 continue;
             }
-            TableWriter::Row row{baseline.label, {}, {}};
-            for (const std::string& set : config.sets) {
-                RunSpec s = spec(set, r, "external");
-                s.label = baseline.label;
-                s.command = command;
-                row.runs.push_back(&runner.get(s));
-            }
-            rows.push_back(row);
+            rows.push_back({baseline.label, per_set([&](const std::string& set) {
+                                RunSpec s = spec(set, r, "external");
+                                s.label = baseline.label;
+                                s.command = command;
+                                return &runner.get(s);
+                            }),
+                            {}});
         }
         for (const std::string& backbone : config.backbones) {
             auto [plain, meta] = models(backbone, r);
             if (!plain) continue;
-            TableWriter::Row base{display_name(backbone), {}, {}};
-            for (const std::string& set : config.sets) base.runs.push_back(network(set, r, *plain, 0));
+            TableWriter::Row base{display_name(backbone), per_set([&](const std::string& set) {
+                                      return network(set, r, *plain, 0);
+                                  }),
+                                  {}};
             rows.push_back(base);
             if (!meta) continue;
-            TableWriter::Row ours{display_name(backbone) + " + ours (" + n_label + ")", {}, base.runs};
-            for (const std::string& set : config.sets)
-                ours.runs.push_back(network(set, r, *meta, config.tta_steps));
-            rows.push_back(ours);
+            rows.push_back({display_name(backbone) + " + ours (" + n_label + ")",
+                            per_set([&](const std::string& set) {
+                                return network(set, r, *meta, config.tta_steps);
+                            }),
+                            base.runs});
         }
         nlohmann::json& t1 = tables["table1"];
         writer.table("Table I", config.sets, {kCd, kPsnr}, rows, t1);
@@ -615,29 +620,29 @@ nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_d
         for (const std::string& backbone : config.backbones) {
             auto [plain, meta] = models(backbone, r);
             if (!plain) continue;
-            TableWriter::Row base{display_name(backbone), {}, {}};
-            for (const std::string& set : config.sets) base.runs.push_back(network(set, r, *plain, 0));
+            TableWriter::Row base{display_name(backbone), per_set([&](const std::string& set) {
+                                      return network(set, r, *plain, 0);
+                                  }),
+                                  {}};
             rows.push_back(base);
             double lr = config.tta_lr_without_meta.count(backbone)
                             ? config.tta_lr_without_meta.at(backbone)
                             : -1;
-            TableWriter::Row tta{display_name(backbone) + " + TTA w/o meta", {}, base.runs};
-            for (const std::string& set : config.sets)
-                tta.runs.push_back(network(set, r, *plain, config.tta_steps, lr));
+            TableWriter::Row tta{display_name(backbone) + " + TTA w/o meta",
+                                 per_set([&](const std::string& set) {
+                                     return network(set, r, *plain, config.tta_steps, lr);
+                                 }),
+                                 base.runs};
             rows.push_back(tta);
             if (!meta) continue;
-            TableWriter::Row frozen{display_name(backbone) + " + ours, no adaptation", {}, base.runs};
-            TableWriter::Row ours{display_name(backbone) + " + ours", {}, base.runs};
-            TableWriter::Row ours_vs_tta{display_name(backbone) + " + ours vs TTA w/o meta", {},
-                                         tta.runs};
-            for (const std::string& set : config.sets) {
-                frozen.runs.push_back(network(set, r, *meta, 0));
-                ours.runs.push_back(network(set, r, *meta, config.tta_steps));
-            }
-            ours_vs_tta.runs = ours.runs;
-            rows.push_back(frozen);
-            rows.push_back(ours);
-            rows.push_back(ours_vs_tta);
+            std::vector<const RunResult*> ours = per_set([&](const std::string& set) {
+                return network(set, r, *meta, config.tta_steps);
+            });
+            rows.push_back({display_name(backbone) + " + ours, no adaptation",
+                            per_set([&](const std::string& set) { return network(set, r, *meta, 0); }),
+                            base.runs});
+            rows.push_back({display_name(backbone) + " + ours", ours, base.runs});
+            rows.push_back({display_name(backbone) + " + ours vs TTA w/o meta", ours, tta.runs});
         }
         writer.table("Table IV", config.sets, {kCd, kPsnr}, rows, tables["table4"]);
         md << "The last row of each backbone repeats \"ours\" with \"TTA w/o meta\" as its base "

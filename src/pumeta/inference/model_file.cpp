@@ -21,6 +21,15 @@ InferenceModel load_inference_model(const std::string& path) {
     return model;
 }
 
+void set_adaptation(UpsampleOptions& options, const InferenceModel& model, double inner_lr) {
+    options.meta = model.meta;
+    options.step_sizes = model.step_sizes;
+    if (inner_lr >= 0) {
+        options.meta.inner_lr = inner_lr;
+        options.step_sizes.clear();
+    }
+}
+
 std::string default_model_path(const std::string& name) {
     if (const char* dir = std::getenv("PUMETA_MODELS"))
         return (std::filesystem::path(dir) / name).string();

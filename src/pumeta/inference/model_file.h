@@ -7,6 +7,7 @@
 #include <memory>
 #include <string>
 
+#include "pumeta/inference/upsample.h"
 #include "pumeta/meta/maml.h"
 #include "pumeta/models/backbone.h"
 
@@ -22,6 +23,10 @@ struct InferenceModel {
 };
 
 InferenceModel load_inference_model(const std::string& path);
+
+/// Adaptation settings of `model` in `options` (meta options and learned step sizes), or, when
+/// inner_lr >= 0, one plain step size in place of the learned ones. tta_steps is left alone.
+void set_adaptation(UpsampleOptions& options, const InferenceModel& model, double inner_lr = -1);
 
 /// The shipped model used when --model is not given: $PUMETA_MODELS/<name> if set, else the
 /// source tree's models/<name>.
