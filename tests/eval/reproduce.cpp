@@ -51,7 +51,7 @@ TEST_F(ReproduceTest, WritesEveryTableWithCellsEqualToTheEvalSummaries) {
     nlohmann::json tables = reproduce(config(), out.string(), "test");
     std::string md = test::read_file((out / "tables.md").string());
     for (const char* title : {"## Table I:", "## Table II:", "## Table III:", "## Table IV:",
-                              "## Table V:", "## Paired comparisons"})
+                              "## Table V:", "## Table VI:", "## Paired comparisons"})
         EXPECT_NE(md.find(title), std::string::npos) << title;
 
     // Table I, PU-GCN on test-indist: the mean CD of its eval run.
@@ -91,13 +91,26 @@ TEST_F(ReproduceTest, WritesEveryTableWithCellsEqualToTheEvalSummaries) {
               std::string::npos);
     bool dispu_missing = false;
     for (const auto& note : tables.at("missing"))
-        dispu_missing |= note.get<std::string>().find("Dis-PU at 4×: no model") != std::string::npos;
+        dispu_missing |=
+            note.get<std::string>().find("Dis-PU at 4×: no model") != std::string::npos;
     EXPECT_TRUE(dispu_missing);
     bool absent_missing = false;
     for (const auto& note : tables.at("missing"))
-        absent_missing |= note.get<std::string>().find("absent: /nonexistent/upsampler is not built") !=
-                          std::string::npos;
+        absent_missing |= note.get<std::string>().find(
+                              "absent: /nonexistent/upsampler is not built") != std::string::npos;
     EXPECT_TRUE(absent_missing);
+
+    // Table VI: the zero-shot baseline on the first object of each set, paired with the
+    // pretrained backbone on that same object; its run records the training budget.
+    const nlohmann::json& zero_shot = row(tables.at("table6"), "PU-GCN zero-shot (from scratch)");
+    EXPECT_EQ(zero_shot["cells"][0]["count"], 1);
+    EXPECT_EQ(zero_shot["cells"][0]["vs_base"]["count"], 1);
+    EXPECT_EQ(row(tables.at("table6"), "PU-GCN")["cells"][0]["count"], 1);
+    nlohmann::json zs_summary =
+        read_json(out / "runs/test-indist-x4/zero-shot-pugcn-x4.s3.first1/summary.json");
+    EXPECT_EQ(zs_summary["method"], "zero-shot");
+    EXPECT_EQ(zs_summary["zero_shot"]["steps"], 3);
+    EXPECT_GT(zs_summary["zero_shot"]["training_seconds"]["mean"].get<double>(), 0);
 }
 
 TEST_F(ReproduceTest, ASecondRunReusesUnchangedEvaluationsAndRedoesChangedModels) {
@@ -124,8 +137,9 @@ TEST_F(ReproduceTest, ASecondRunReusesUnchangedEvaluationsAndRedoesChangedModels
 }
 
 TEST(ReproduceConfig, BudgetsOverrideFieldsAndMistakesAreInputErrors) {
-    nlohmann::json j = {{"main_ratio", 4},
-                        {"budgets", {{"quick", {{"max_cases", 3}}}, {"full", nlohmann::json::object()}}}};
+    nlohmann::json j = {
+        {"main_ratio", 4},
+        {"budgets", {{"quick", {{"max_cases", 3}}}, {"full", nlohmann::json::object()}}}};
     EXPECT_EQ(ReproduceConfig::from_json(j, "quick").max_cases, 3);
     EXPECT_EQ(ReproduceConfig::from_json(j, "full").max_cases, 0);
     EXPECT_EQ(ReproduceConfig::from_json(j, "full").main_ratio, 4);

@@ -172,6 +172,7 @@ nlohmann::json make_tiny_reproduction(const fs::path& dir) {
             {"steps_sweep", {1}},
             {"sweep_backbones", {"pugcn"}},
             {"tta_lr_without_meta", {{"pugcn", 0.02}}},
+            {"zero_shot", {{"steps", 3}, {"batch_patches", 2}, {"max_cases", 1}}},
             {"budgets", {{"quick", {{"max_cases", 2}}}, {"full", nlohmann::json::object()}}}};
 }
 

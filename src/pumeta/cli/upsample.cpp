@@ -141,8 +141,23 @@ void add_eval_command(CLI::App& app, const std::string& command_line) {
         ->required();
     command->add_option("-o,--output", args->output, "output directory (cases.csv, summary.json)")
         ->required();
-    command->add_option("--method", args->eval.method, "network, midpoint, input, floor or external")
-        ->check(CLI::IsMember({"network", "midpoint", "input", "floor", "external"}));
+    command
+        ->add_option("--method", args->eval.method,
+                     "network, midpoint, input, floor, external or zero-shot (a fresh model of "
+                     "--model's architecture trained on each input alone)")
+        ->check(CLI::IsMember({"network", "midpoint", "input", "floor", "external", "zero-shot"}));
+    command
+        ->add_option("--zero-shot-steps", args->eval.zero_shot.steps,
+                     "method zero-shot: Adam steps per input")
+        ->check(CLI::PositiveNumber);
+    command
+        ->add_option("--zero-shot-batch", args->eval.zero_shot.batch_patches,
+                     "method zero-shot: patches per step")
+        ->check(CLI::PositiveNumber);
+    command
+        ->add_option("--zero-shot-lr", args->eval.zero_shot.lr,
+                     "method zero-shot: Adam learning rate")
+        ->check(CLI::PositiveNumber);
     command->add_option("--command", args->eval.external_command,
                         "method external: shell command with {input}, {output} (XYZ files) and "
                         "{ratio}, e.g. \"build/pumeta-ear {input} {output} --ratio {ratio}\"");
@@ -153,7 +168,7 @@ void add_eval_command(CLI::App& app, const std::string& command_line) {
     add_model_options(*command, args->model);
     command->callback([args] {
         InferenceModel model;
-        if (args->eval.method == "network") {
+        if (args->eval.method == "network" || args->eval.method == "zero-shot") {
             model = load_model(args->model);
             args->eval.upsample = make_upsample_options(args->model, model);
         }

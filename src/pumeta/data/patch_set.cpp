@@ -17,20 +17,6 @@ namespace {
 
 constexpr int64_t kPatchSetVersion = 1;
 
-at::Tensor random_rotation(std::mt19937_64& rng) {
-    // A uniformly random rotation from a random unit quaternion (Shoemake).
-    std::uniform_real_distribution<double> u(0.0, 1.0);
-    double u1 = u(rng), u2 = u(rng), u3 = u(rng);
-    double a = std::sqrt(1 - u1), b = std::sqrt(u1);
-    double x = a * std::sin(2 * M_PI * u2), y = a * std::cos(2 * M_PI * u2);
-    double z = b * std::sin(2 * M_PI * u3), w = b * std::cos(2 * M_PI * u3);
-    return at::tensor({1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
-                       2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
-                       2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)},
-                      at::kFloat)
-        .view({3, 3});
-}
-
 }  // namespace
 
 at::Tensor PatchSet::gt_patch(int64_t s) const {

@@ -46,13 +46,14 @@ std::string shell_quote(const std::string& text) {
 }
 
 void replace_all(std::string& text, const std::string& key, const std::string& value) {
-    for (size_t at = text.find(key); at != std::string::npos; at = text.find(key, at + value.size()))
+    for (size_t at = text.find(key); at != std::string::npos;
+         at = text.find(key, at + value.size()))
         text.replace(at, key.size(), value);
 }
 
 /// Runs an external upsampler on `input` through XYZ files in `work_dir`.
-at::Tensor run_external(const std::string& command_template, const at::Tensor& input,
-                        int64_t ratio, const fs::path& work_dir, const std::string& name) {
+at::Tensor run_external(const std::string& command_template, const at::Tensor& input, int64_t ratio,
+                        const fs::path& work_dir, const std::string& name) {
     fs::create_directories(work_dir);
     fs::path in = work_dir / (name + ".in.xyz"), out = work_dir / (name + ".out.xyz");
     write_point_cloud(in.string(), {input});
@@ -60,8 +61,8 @@ at::Tensor run_external(const std::string& command_template, const at::Tensor& i
     replace_all(command, "{input}", shell_quote(in.string()));
     replace_all(command, "{output}", shell_quote(out.string()));
     replace_all(command, "{ratio}", std::to_string(ratio));
-    int status = std::system((command + " 2>" + shell_quote((work_dir / "stderr.txt").string()))
-                                 .c_str());
+    int status =
+        std::system((command + " 2>" + shell_quote((work_dir / "stderr.txt").string())).c_str());
     fs::remove(in);
     if (status != 0 || !fs::exists(out)) {
         std::ifstream err(work_dir / "stderr.txt");
@@ -88,8 +89,8 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
     } catch (const nlohmann::json::parse_error& e) {
         throw_input_error(index_file.string(), "invalid JSON at byte {}", e.byte);
     }
-    if (options.method == "network" && !model)
-        throw_input_error("eval", "method 'network' needs --model");
+    if ((options.method == "network" || options.method == "zero-shot") && !model)
+        throw_input_error("eval", "method '{}' needs --model", options.method);
     int64_t ratio = index.at("ratio");
     UpsampleOptions upsample = options.upsample;
     upsample.ratio = ratio;
@@ -128,24 +129,36 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
         auto start = std::chrono::steady_clock::now();
         if (options.method == "network") {
             result = upsample_cloud(*model, input, upsample);
+        } else if (options.method == "zero-shot") {
+            ZeroShotOptions zero_shot = options.zero_shot;
+            zero_shot.seed = upsample.seed;
+            ZeroShotResult trained = train_zero_shot(model->config(), input, zero_shot);
+            UpsampleOptions plain = upsample;
+            plain.tta_steps = 0;
+            result = upsample_cloud(*trained.model, input, plain);
+            result.seconds += trained.seconds;
+            result.tta_seconds = trained.seconds;
+            result.loss_before = trained.loss_first;
+            result.loss_after = trained.loss_last;
         } else if (options.method == "midpoint") {
             result.points = midpoint_upsample(input, ratio);
         } else if (options.method == "external") {
             if (options.external_command.empty())
                 throw_input_error("eval", "method 'external' needs a command");
-            result.points = run_external(options.external_command, input, ratio,
-                                         fs::path(out_dir) / "external",
-                                         c["name"].get<std::string>());
+            result.points =
+                run_external(options.external_command, input, ratio, fs::path(out_dir) / "external",
+                             c["name"].get<std::string>());
         } else if (options.method == "input") {
             result.points = input;
         } else if (options.method == "floor") {
             if (c.value("gt_alt", nlohmann::json()).is_null())
                 throw_input_error(dir.string(), "case has no gt_alt.ply for the sampling floor");
-            result.points = read_point_cloud((dir / c["gt_alt"].get<std::string>()).string()).points;
+            result.points =
+                read_point_cloud((dir / c["gt_alt"].get<std::string>()).string()).points;
         } else {
             throw_input_error("--method", "unknown method '{}'", options.method);
         }
-        if (options.method != "network")
+        if (options.method != "network" && options.method != "zero-shot")
             result.seconds =
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         MetricReport m = evaluate(result.points, gt, has_mesh ? &mesh : nullptr);
@@ -155,20 +168,21 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
         p2f.add(p2f_value);
         psnr.add(m.psnr);
         seconds.add(result.seconds);
-        tta_seconds.add(options.upsample.tta_steps > 0 ? result.tta_seconds : std::nan(""));
+        // Adaptation time, or the zero-shot model's training time.
+        bool trains = options.upsample.tta_steps > 0 || options.method == "zero-shot";
+        tta_seconds.add(trains ? result.tta_seconds : std::nan(""));
         loss_before.add(result.loss_before);
         loss_after.add(result.loss_after);
         if (result.loss_after < result.loss_before) ++improved_inner;
         csv << c["name"].get<std::string>() << "," << input.size(0) << "," << m.n_pred << ","
             << csv_number(m.cd) << "," << csv_number(m.hd) << "," << csv_number(p2f_value) << ","
             << csv_number(m.psnr) << "," << csv_number(result.seconds) << ","
-            << csv_number(options.upsample.tta_steps > 0 ? result.tta_seconds : std::nan(""))
-            << "," << csv_number(result.loss_before) << "," << csv_number(result.loss_after)
-            << "\n";
+            << csv_number(trains ? result.tta_seconds : std::nan("")) << ","
+            << csv_number(result.loss_before) << "," << csv_number(result.loss_after) << "\n";
         if (saves(i))
-            write_point_cloud((fs::path(out_dir) / "pred" / (c["name"].get<std::string>() + ".ply"))
-                                  .string(),
-                              {result.points});
+            write_point_cloud(
+                (fs::path(out_dir) / "pred" / (c["name"].get<std::string>() + ".ply")).string(),
+                {result.points});
         progress.update(static_cast<int64_t>(i + 1), fmt::format("CD {:.3e}", m.cd));
     }
     progress.finish();
@@ -189,13 +203,19 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
                               {"psnr", psnr.summary()},
                               {"seconds", seconds.summary()},
                               {"command", options.command_line}};
-    if (options.upsample.tta_steps > 0) {
-        summary["tta"] = {{"steps", options.upsample.tta_steps},
-                          {"unit", options.upsample.tta_unit},
-                          {"seconds", tta_seconds.summary()},
-                          {"loss_before", loss_before.summary()},
-                          {"loss_after", loss_after.summary()},
-                          {"inner_loss_improved", improved_inner}};
+    if (options.method == "zero-shot") {
+        summary["zero_shot"] = {{"steps", options.zero_shot.steps},
+                                {"batch_patches", options.zero_shot.batch_patches},
+                                {"lr", options.zero_shot.lr},
+                                {"augment", options.zero_shot.augment},
+                                {"training_seconds", tta_seconds.summary()},
+                                {"loss_first", loss_before.summary()},
+                                {"loss_last", loss_after.summary()}};
+    } else if (options.upsample.tta_steps > 0) {
+        summary["tta"] = {
+            {"steps", options.upsample.tta_steps}, {"unit", options.upsample.tta_unit},
+            {"seconds", tta_seconds.summary()},    {"loss_before", loss_before.summary()},
+            {"loss_after", loss_after.summary()},  {"inner_loss_improved", improved_inner}};
     }
     std::ofstream(fs::path(out_dir) / "summary.json") << summary.dump(2) << "\n";
     return summary;

@@ -4,10 +4,10 @@
 #pragma once
 
 #include <nlohmann/json.hpp>
-
 #include <string>
 
 #include "pumeta/inference/upsample.h"
+#include "pumeta/inference/zero_shot.h"
 
 namespace pumeta {
 
@@ -15,7 +15,8 @@ struct EvalOptions {
     /// "network" (the model), "midpoint" (non-learned baseline), "input" (the input itself,
     /// unchanged: the reference any method must beat), "floor" (a second independent GT sample:
     /// the sampling floor; cases with gt_alt only), "external" (another program, see
-/// external_command).
+    /// external_command), "zero-shot" (a fresh model of the given model's architecture trained
+    /// on each input alone, see zero_shot).
     std::string method = "network";
     /// Method "external": a shell command upsampling {input} (an XYZ file) into {output} (XYZ)
     /// by {ratio}; e.g. "build/pumeta-ear {input} {output} --ratio {ratio}".
@@ -29,13 +30,15 @@ struct EvalOptions {
     /// ... or only those of the first N cases (figures of `pumeta report`).
     int64_t save_first = 0;
     UpsampleOptions upsample;
+    /// Method "zero-shot": the test-time training budget (its seed is upsample.seed).
+    ZeroShotOptions zero_shot;
     /// Recorded in the summary.
     std::string command_line;
 };
 
 /// cases_dir: a cases/<set>/x<r> directory holding cases.json. model may be null unless the
-/// method is "network". Returns the summary (also written to out_dir/summary.json; per-case
-/// rows to out_dir/cases.csv).
+/// method is "network" or "zero-shot". Returns the summary (also written to out_dir/summary.json;
+/// per-case rows to out_dir/cases.csv).
 nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* model,
                               const EvalOptions& options, const std::string& out_dir);
 

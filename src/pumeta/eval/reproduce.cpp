@@ -1,15 +1,14 @@
 #include "pumeta/eval/reproduce.h"
 
 #include <spdlog/spdlog.h>
-
 #include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <filesystem>
-#include <functional>
 #include <fstream>
+#include <functional>
 #include <optional>
 #include <set>
 #include <sstream>
@@ -54,18 +53,25 @@ struct RunSpec {
     std::string method = "network";  // network, midpoint, input, floor
     std::string model;               // network: checkpoint file
     int64_t tta_steps = 0;
-    double tta_lr = -1;  // < 0: the model's own step sizes
-    std::string noise;   // "" = clean input
+    double tta_lr = -1;          // < 0: the model's own step sizes
+    std::string noise;           // "" = clean input
     std::string label, command;  // external: the baseline's label and command
+    int64_t max_cases = -1;      // < 0: the config's max_cases
+    ZeroShotBaseline zero_shot;  // method zero-shot (model: the architecture's checkpoint)
 
     std::string directory() const {
         std::string name = method == "network" ? fs::path(model).stem().string() : method;
+        if (method == "zero-shot")
+            name =
+                fmt::format("zero-shot-{}.s{}", fs::path(model).stem().string(), zero_shot.steps);
         if (method == "external") {
             name = "external-";
-            for (char c : label) name += std::isalnum(static_cast<unsigned char>(c)) ? char(std::tolower(c)) : '-';
+            for (char c : label)
+                name += std::isalnum(static_cast<unsigned char>(c)) ? char(std::tolower(c)) : '-';
         }
         if (method == "network") name += tta_steps > 0 ? ".tta" + std::to_string(tta_steps) : "";
         if (tta_lr >= 0) name += fmt::format(".lr{:g}", tta_lr);
+        if (max_cases >= 0) name += fmt::format(".first{}", max_cases);
         std::string cases = set + "-x" + std::to_string(ratio) + (noise.empty() ? "" : "-" + noise);
         return cases + "/" + name;
     }
@@ -134,8 +140,8 @@ class Runner {
             int64_t r = ratio;
             while (r % base == 0 && r > base) r /= base;
             if (r != base) continue;
-            fs::path file = fs::path(config_.models_dir) /
-                            (backbone + "-x" + std::to_string(base) + (meta ? "-meta" : "") + ".pt");
+            fs::path file = fs::path(config_.models_dir) / (backbone + "-x" + std::to_string(base) +
+                                                            (meta ? "-meta" : "") + ".pt");
             if (fs::exists(file)) return file.string();
         }
         return std::nullopt;
@@ -153,6 +159,7 @@ class Runner {
             result.error = "no test cases at " + cases.string();
             return result;
         }
+        int64_t max_cases = spec.max_cases >= 0 ? spec.max_cases : config_.max_cases;
         nlohmann::json identity = {{"cases", cases.string()},
                                    {"method", spec.method},
                                    {"tta_steps", spec.tta_steps},
@@ -160,9 +167,14 @@ class Runner {
                                    {"tta_unit", config_.tta_unit},
                                    {"noise", spec.noise},
                                    {"seed", config_.seed},
-                                   {"max_cases", config_.max_cases},
+                                   {"max_cases", max_cases},
                                    {"figure_cases", config_.figure_cases}};
-        if (spec.method == "network") identity["model_sha256"] = sha256_file(spec.model);
+        if (spec.method == "network" || spec.method == "zero-shot")
+            identity["model_sha256"] = sha256_file(spec.model);
+        if (spec.method == "zero-shot")
+            identity["zero_shot"] = {{"steps", spec.zero_shot.steps},
+                                     {"batch_patches", spec.zero_shot.batch_patches},
+                                     {"lr", spec.zero_shot.lr}};
         if (spec.method == "external") identity["command"] = spec.command;
         fs::path spec_file = dir / "spec.json";
         bool reusable = fs::exists(dir / "cases.csv") && fs::exists(dir / "summary.json") &&
@@ -176,10 +188,14 @@ class Runner {
             options.method = spec.method;
             options.external_command = spec.command;
             options.noise = spec.noise;
-            options.max_cases = config_.max_cases;
+            options.max_cases = max_cases;
+            options.zero_shot.steps = spec.zero_shot.steps;
+            options.zero_shot.batch_patches = spec.zero_shot.batch_patches;
+            options.zero_shot.lr = spec.zero_shot.lr;
             options.save_first = config_.figure_cases;
             options.command_line = command_line_;
             InferenceModel model;
+            if (spec.method == "zero-shot") model = load_inference_model(spec.model);
             if (spec.method == "network") {
                 model = load_inference_model(spec.model);
                 set_adaptation(options.upsample, model, spec.tta_lr);
@@ -239,7 +255,7 @@ class TableWriter {
 
     struct Row {
         std::string label;
-        std::vector<const RunResult*> runs;  // one per column group
+        std::vector<const RunResult*> runs;   // one per column group
         std::vector<const RunResult*> bases;  // paired comparison per group (or null)
     };
 
@@ -263,9 +279,10 @@ class TableWriter {
                 for (const Metric& m : metrics) {
                     double value = run ? run->mean(m.column) : std::nan("");
                     std::string cell = number(value / m.scale);
-                    nlohmann::json json_cell = {{"group", groups[g]},
-                                                {"metric", m.column},
-                                                {"mean", std::isfinite(value) ? nlohmann::json(value) : nlohmann::json()}};
+                    nlohmann::json json_cell = {
+                        {"group", groups[g]},
+                        {"metric", m.column},
+                        {"mean", std::isfinite(value) ? nlohmann::json(value) : nlohmann::json()}};
                     if (run) json_cell["run"] = run->dir;
                     if (run && !run->ok) json_cell["missing"] = run->error;
                     if (run && run->ok) json_cell["count"] = run->cases.size();
@@ -279,8 +296,7 @@ class TableWriter {
                                 "- {}, {}, {}: {} vs its base: n = {}, mean difference {:.4g} "
                                 "(95 % CI [{:.4g}, {:.4g}]), better on {:.0f} % of objects",
                                 table_id, groups[g], m.column, row.label, c.count,
-                                c.mean_difference, c.ci_low, c.ci_high,
-                                100 * c.fraction_improved));
+                                c.mean_difference, c.ci_low, c.ci_high, 100 * c.fraction_improved));
                         }
                     }
                     out_ << " " << cell << " |";
@@ -352,11 +368,25 @@ ReproduceConfig ReproduceConfig::from_json(nlohmann::json j, const std::string& 
     } else if (budget != "full") {
         throw_input_error(kContext, "budget '{}' needs a 'budgets' object", budget);
     }
-    static const std::set<std::string> known = {
-        "comment",     "dataset_dir",  "models_dir",  "backbones",           "main_ratio",
-        "table3_ratios", "sets",       "noise",       "tta_steps",           "tta_unit",
-        "steps_sweep", "sweep_backbones", "tta_lr_without_meta", "seed", "bootstrap_resamples",
-        "max_cases",   "figure_cases", "external_baselines"};
+    static const std::set<std::string> known = {"comment",
+                                                "dataset_dir",
+                                                "models_dir",
+                                                "backbones",
+                                                "main_ratio",
+                                                "table3_ratios",
+                                                "sets",
+                                                "noise",
+                                                "tta_steps",
+                                                "tta_unit",
+                                                "steps_sweep",
+                                                "sweep_backbones",
+                                                "tta_lr_without_meta",
+                                                "seed",
+                                                "bootstrap_resamples",
+                                                "max_cases",
+                                                "figure_cases",
+                                                "external_baselines",
+                                                "zero_shot"};
     for (const auto& [key, value] : j.items())
         if (!known.count(key)) throw_input_error(kContext, "unknown field '{}'", key);
     ReproduceConfig c;
@@ -377,6 +407,20 @@ ReproduceConfig ReproduceConfig::from_json(nlohmann::json j, const std::string& 
     read_field(j, "bootstrap_resamples", c.bootstrap_resamples);
     read_field(j, "max_cases", c.max_cases);
     read_field(j, "figure_cases", c.figure_cases);
+    if (j.contains("zero_shot")) {
+        const nlohmann::json& z = j["zero_shot"];
+        if (!z.is_object()) throw_input_error(kContext, "'zero_shot' must be an object");
+        for (const auto& [key, value] : z.items())
+            if (key != "steps" && key != "batch_patches" && key != "lr" && key != "max_cases")
+                throw_input_error(kContext, "unknown field 'zero_shot.{}'", key);
+        read_field(z, "steps", c.zero_shot.steps);
+        read_field(z, "batch_patches", c.zero_shot.batch_patches);
+        read_field(z, "lr", c.zero_shot.lr);
+        read_field(z, "max_cases", c.zero_shot.max_cases);
+        if (c.zero_shot.steps < 1 || c.zero_shot.batch_patches < 1 || c.zero_shot.lr <= 0 ||
+            c.zero_shot.max_cases < 0)
+            throw_input_error(kContext, "zero_shot: steps, batch_patches, lr must be positive");
+    }
     if (j.contains("external_baselines")) {
         if (!j["external_baselines"].is_array())
             throw_input_error(kContext, "'external_baselines' must be an array");
@@ -413,6 +457,11 @@ nlohmann::json ReproduceConfig::to_json() const {
             {"bootstrap_resamples", bootstrap_resamples},
             {"max_cases", max_cases},
             {"figure_cases", figure_cases},
+            {"zero_shot",
+             {{"steps", zero_shot.steps},
+              {"batch_patches", zero_shot.batch_patches},
+              {"lr", zero_shot.lr},
+              {"max_cases", zero_shot.max_cases}}},
             {"external_baselines",
              [&] {
                  nlohmann::json a = nlohmann::json::array();
@@ -494,10 +543,10 @@ nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_d
            << "Data: " << counts_line(runner, config.sets, r, spec("", r, "input")) << ".\n\n";
         std::vector<TableWriter::Row> rows;
         auto reference_row = [&](const std::string& label, const std::string& method) {
-            rows.push_back({label, per_set([&](const std::string& set) {
-                                return &runner.get(spec(set, r, method));
-                            }),
-                            {}});
+            rows.push_back(
+                {label,
+                 per_set([&](const std::string& set) { return &runner.get(spec(set, r, method)); }),
+                 {}});
         };
         reference_row("input, unchanged", "input");
         reference_row("sampling floor (2nd GT sample)", "floor");
@@ -515,7 +564,8 @@ nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_d
                                             baseline.label, program));
                 continue;
             }
-            rows.push_back({baseline.label, per_set([&](const std::string& set) {
+            rows.push_back({baseline.label,
+                            per_set([&](const std::string& set) {
                                 RunSpec s = spec(set, r, "external");
                                 s.label = baseline.label;
                                 s.command = command;
@@ -526,10 +576,10 @@ nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_d
         for (const std::string& backbone : config.backbones) {
             auto [plain, meta] = models(backbone, r);
             if (!plain) continue;
-            TableWriter::Row base{display_name(backbone), per_set([&](const std::string& set) {
-                                      return network(set, r, *plain, 0);
-                                  }),
-                                  {}};
+            TableWriter::Row base{
+                display_name(backbone),
+                per_set([&](const std::string& set) { return network(set, r, *plain, 0); }),
+                {}};
             rows.push_back(base);
             if (!meta) continue;
             rows.push_back({display_name(backbone) + " + ours (" + n_label + ")",
@@ -573,8 +623,8 @@ nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_d
             if (!meta) continue;
             TableWriter::Row ours{display_name(backbone) + " + ours", {}, base.runs};
             for (const std::string& level : levels)
-                ours.runs.push_back(network(set, r, *meta, config.tta_steps, -1,
-                                            level == "clean" ? "" : level));
+                ours.runs.push_back(
+                    network(set, r, *meta, config.tta_steps, -1, level == "clean" ? "" : level));
             rows.push_back(ours);
         }
         writer.table("Table II", levels, {kCd}, rows, tables["table2"]);
@@ -620,10 +670,10 @@ nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_d
         for (const std::string& backbone : config.backbones) {
             auto [plain, meta] = models(backbone, r);
             if (!plain) continue;
-            TableWriter::Row base{display_name(backbone), per_set([&](const std::string& set) {
-                                      return network(set, r, *plain, 0);
-                                  }),
-                                  {}};
+            TableWriter::Row base{
+                display_name(backbone),
+                per_set([&](const std::string& set) { return network(set, r, *plain, 0); }),
+                {}};
             rows.push_back(base);
             double lr = config.tta_lr_without_meta.count(backbone)
                             ? config.tta_lr_without_meta.at(backbone)
@@ -635,12 +685,12 @@ nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_d
                                  base.runs};
             rows.push_back(tta);
             if (!meta) continue;
-            std::vector<const RunResult*> ours = per_set([&](const std::string& set) {
-                return network(set, r, *meta, config.tta_steps);
-            });
-            rows.push_back({display_name(backbone) + " + ours, no adaptation",
-                            per_set([&](const std::string& set) { return network(set, r, *meta, 0); }),
-                            base.runs});
+            std::vector<const RunResult*> ours = per_set(
+                [&](const std::string& set) { return network(set, r, *meta, config.tta_steps); });
+            rows.push_back(
+                {display_name(backbone) + " + ours, no adaptation",
+                 per_set([&](const std::string& set) { return network(set, r, *meta, 0); }),
+                 base.runs});
             rows.push_back({display_name(backbone) + " + ours", ours, base.runs});
             rows.push_back({display_name(backbone) + " + ours vs TTA w/o meta", ours, tta.runs});
         }
@@ -659,7 +709,8 @@ nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_d
         for (const std::string& backbone : config.sweep_backbones) {
             auto [plain, meta] = models(backbone, r);
             if (!plain || !meta) continue;
-            TableWriter::Row base{display_name(backbone) + ", plain", {network(set, r, *plain, 0)}, {}};
+            TableWriter::Row base{
+                display_name(backbone) + ", plain", {network(set, r, *plain, 0)}, {}};
             rows.push_back(base);
             for (int64_t steps : config.steps_sweep)
                 rows.push_back({display_name(backbone) + " + ours, N = " + std::to_string(steps),
@@ -667,6 +718,59 @@ nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_d
                                 base.runs});
         }
         writer.table("Table V", {set}, {kCd, kPsnr, kSeconds}, rows, tables["table5"]);
+    }
+
+    // ---- Table VI (beyond the paper) -----------------------------------------------------
+    if (config.zero_shot.max_cases > 0) {
+        const ZeroShotBaseline& z = config.zero_shot;
+        md << "## Table VI: internal learning vs external pretraining, " << r << "× (first "
+           << z.max_cases << " objects of each set)\n\n"
+           << "\"zero-shot\" trains the backbone from a fresh initialisation on each input's own "
+              "pairs (X↓, X) only, in the spirit of ZSPU: "
+           << z.steps << " Adam steps of " << z.batch_patches << " patches, lr " << z.lr
+           << ", random rotations; its time per object includes that training. Its base is the "
+              "pretrained backbone on the same objects, so the change shows what external "
+              "pretraining buys.\n\n";
+        auto first = [&](RunSpec s) {
+            s.max_cases = z.max_cases;
+            return &runner.get(s);
+        };
+        std::vector<TableWriter::Row> rows;
+        rows.push_back(
+            {"midpoint baseline",
+             per_set([&](const std::string& set) { return first(spec(set, r, "midpoint")); }),
+             {}});
+        for (const std::string& backbone : config.backbones) {
+            auto [plain, meta] = models(backbone, r);
+            if (!plain) continue;
+            auto network_first = [&](const std::string& set, const std::string& model,
+                                     int64_t steps) {
+                RunSpec s = spec(set, r, "network");
+                s.model = model;
+                s.tta_steps = steps;
+                return first(s);
+            };
+            TableWriter::Row base{
+                display_name(backbone),
+                per_set([&](const std::string& set) { return network_first(set, *plain, 0); }),
+                {}};
+            rows.push_back({display_name(backbone) + " zero-shot (from scratch)",
+                            per_set([&](const std::string& set) {
+                                RunSpec s = spec(set, r, "zero-shot");
+                                s.model = *plain;
+                                s.zero_shot = z;
+                                return first(s);
+                            }),
+                            base.runs});
+            rows.push_back(base);
+            if (!meta) continue;
+            rows.push_back({display_name(backbone) + " + ours (" + n_label + ")",
+                            per_set([&](const std::string& set) {
+                                return network_first(set, *meta, config.tta_steps);
+                            }),
+                            base.runs});
+        }
+        writer.table("Table VI", config.sets, {kCd, kPsnr, kSeconds}, rows, tables["table6"]);
     }
 
     if (!notes.empty()) {

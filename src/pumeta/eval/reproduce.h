@@ -22,6 +22,16 @@ struct ExternalBaseline {
     std::string command;
 };
 
+/// The zero-shot internal-learning baseline (Table VI): a fresh backbone trained on each input
+/// alone (eval method "zero-shot"). Costly, so it runs on the first `max_cases` objects only.
+struct ZeroShotBaseline {
+    int64_t steps = 300;
+    int64_t batch_patches = 8;
+    double lr = 1e-3;
+    /// Objects per set (0 = none: no Table VI).
+    int64_t max_cases = 5;
+};
+
 struct ReproduceConfig {
     std::string dataset_dir = "data/dataset";
     std::string models_dir = "models";
@@ -54,6 +64,7 @@ struct ReproduceConfig {
     /// Predictions of the first N cases of every run are kept (runs/.../pred/) for the
     /// figures of `pumeta report`.
     int64_t figure_cases = 4;
+    ZeroShotBaseline zero_shot;
     std::string budget = "full";
 
     /// `budget` selects the object of j["budgets"] whose fields override the others.

@@ -6,6 +6,7 @@
 #include <ATen/core/Tensor.h>
 
 #include <cstdint>
+#include <random>
 
 #include "pumeta/geometry/point_cloud.h"
 
@@ -24,6 +25,9 @@ at::Tensor farthest_point_sampling_batched(const at::Tensor& points, int64_t m);
 
 /// m distinct indices drawn uniformly from [0, n) (sorted ascending). InputError when m > n.
 at::Tensor random_subset(int64_t n, int64_t m, uint64_t seed);
+
+/// A uniformly random rotation matrix, float32 [3,3] (Shoemake's random unit quaternion).
+at::Tensor random_rotation(std::mt19937_64& rng);
 
 /// The PU-GAN/PU-GCN non-uniform index sampler: loc ~ U(0.1, 0.9); draw
 /// int(N(loc, 0.3) * n) until m unique indices in [0, n) are found; returns int64 [m] in

@@ -9,6 +9,8 @@
 #include <fstream>
 #include <limits>
 #include <optional>
+#include <string>
+#include <vector>
 
 #include "pumeta/core/blas_check.h"
 #include "pumeta/core/error.h"
@@ -28,26 +30,48 @@ namespace fs = std::filesystem;
 TrainConfig TrainConfig::from_json(const nlohmann::json& j) {
     TrainConfig c;
     for (const auto& [key, value] : j.items()) {
-        if (key == "backbone") c.backbone = value;
-        else if (key == "train_data") c.train_data = value;
-        else if (key == "val_data") c.val_data = value;
-        else if (key == "run_dir") c.run_dir = value;
-        else if (key == "batch_size") c.batch_size = value;
-        else if (key == "steps") c.steps = value;
-        else if (key == "lr") c.lr = value;
-        else if (key == "lr_decay_rate") c.lr_decay_rate = value;
-        else if (key == "lr_decay_steps") c.lr_decay_steps = value;
-        else if (key == "lr_min") c.lr_min = value;
-        else if (key == "sampler") c.sampler = value;
-        else if (key == "augment") c.augment = value;
-        else if (key == "log_every") c.log_every = value;
-        else if (key == "val_every") c.val_every = value;
-        else if (key == "val_patches") c.val_patches = value;
-        else if (key == "checkpoint_every") c.checkpoint_every = value;
-        else if (key == "seed") c.seed = value;
-        else if (key == "distributed") c.distributed = DistributedConfig::from_json(value);
-        else if (key == "comment") continue;
-        else throw_input_error("train config", "unknown field '{}'", key);
+        if (key == "backbone")
+            c.backbone = value;
+        else if (key == "train_data")
+            c.train_data = value;
+        else if (key == "val_data")
+            c.val_data = value;
+        else if (key == "run_dir")
+            c.run_dir = value;
+        else if (key == "batch_size")
+            c.batch_size = value;
+        else if (key == "steps")
+            c.steps = value;
+        else if (key == "lr")
+            c.lr = value;
+        else if (key == "lr_decay_rate")
+            c.lr_decay_rate = value;
+        else if (key == "lr_decay_steps")
+            c.lr_decay_steps = value;
+        else if (key == "lr_min")
+            c.lr_min = value;
+        else if (key == "sampler")
+            c.sampler = value;
+        else if (key == "augment")
+            c.augment = value;
+        else if (key == "log_every")
+            c.log_every = value;
+        else if (key == "val_every")
+            c.val_every = value;
+        else if (key == "val_patches")
+            c.val_patches = value;
+        else if (key == "checkpoint_every")
+            c.checkpoint_every = value;
+        else if (key == "seed")
+            c.seed = value;
+        else if (key == "init_from")
+            c.init_from = value;
+        else if (key == "distributed")
+            c.distributed = DistributedConfig::from_json(value);
+        else if (key == "comment")
+            continue;
+        else
+            throw_input_error("train config", "unknown field '{}'", key);
     }
     if (c.run_dir.empty()) throw_input_error("train config", "'run_dir' is required");
     if (c.train_data.empty()) throw_input_error("train config", "'train_data' is required");
@@ -61,15 +85,25 @@ TrainConfig TrainConfig::from_json(const nlohmann::json& j) {
 }
 
 nlohmann::json TrainConfig::to_json() const {
-    return {{"backbone", backbone},        {"train_data", train_data},
-            {"val_data", val_data},        {"run_dir", run_dir},
-            {"batch_size", batch_size},    {"steps", steps},
-            {"lr", lr},                    {"lr_decay_rate", lr_decay_rate},
-            {"lr_decay_steps", lr_decay_steps}, {"lr_min", lr_min},
-            {"sampler", sampler},          {"augment", augment},
-            {"log_every", log_every},      {"val_every", val_every},
-            {"val_patches", val_patches},  {"checkpoint_every", checkpoint_every},
-            {"seed", seed},                {"distributed", distributed.to_json()}};
+    return {{"backbone", backbone},
+            {"train_data", train_data},
+            {"val_data", val_data},
+            {"run_dir", run_dir},
+            {"batch_size", batch_size},
+            {"steps", steps},
+            {"lr", lr},
+            {"lr_decay_rate", lr_decay_rate},
+            {"lr_decay_steps", lr_decay_steps},
+            {"lr_min", lr_min},
+            {"sampler", sampler},
+            {"augment", augment},
+            {"log_every", log_every},
+            {"val_every", val_every},
+            {"val_patches", val_patches},
+            {"checkpoint_every", checkpoint_every},
+            {"seed", seed},
+            {"init_from", init_from},
+            {"distributed", distributed.to_json()}};
 }
 
 namespace {
@@ -116,6 +150,37 @@ void all_reduce_step(ProcessGroup& group, ParamMap& grads, ParamMap& buffers, do
     stop = mean.at("~stop").item<double>() > 0;
 }
 
+/// Copies every parameter and buffer of the checkpoint at `path` whose name and shape match
+/// the model's; the rest keep their initialisation. Logs what was kept fresh.
+void initialise_from(Backbone& model, const std::string& path, bool log) {
+    LoadedCheckpoint source = load_checkpoint(path);
+    if (source.backbone->name() != model.name())
+        throw_input_error(path, "init_from holds a {} model but the run trains {}",
+                          source.backbone->name(), model.name());
+    int64_t copied = 0;
+    std::vector<std::string> fresh;
+    auto copy_matching = [&](ParamMap& to, const ParamMap& from) {
+        at::NoGradGuard no_grad;
+        for (auto& [name, t] : to) {
+            auto it = from.find(name);
+            if (it != from.end() && it->second.sizes() == t.sizes()) {
+                t.copy_(it->second);
+                ++copied;
+            } else {
+                fresh.push_back(name);
+            }
+        }
+    };
+    copy_matching(model.parameters(), source.backbone->parameters());
+    copy_matching(model.buffers(), source.backbone->buffers());
+    if (copied == 0)
+        throw_input_error(path, "no parameter matches the model in name and shape (init_from)");
+    if (log)
+        spdlog::info(
+            "train: initialised {} tensors from {}; kept fresh: {}", copied, path,
+            fresh.empty() ? std::string("none") : fmt::format("{}", fmt::join(fresh, ", ")));
+}
+
 }  // namespace
 
 TrainResult train(const TrainConfig& config, bool resume, double stop_after_seconds) {
@@ -143,6 +208,7 @@ TrainResult train(const TrainConfig& config, bool resume, double stop_after_seco
             spdlog::warn("train: no state in {}; starting from scratch", config.run_dir);
         if (config.backbone.is_null()) throw_input_error("train config", "'backbone' is required");
         model = make_backbone(config.backbone);
+        if (!config.init_from.empty()) initialise_from(*model, config.init_from, writes);
         if (writes) fs::remove(log_file);
     }
     PatchSet train_set = load_patch_set(config.train_data);
@@ -209,6 +275,7 @@ TrainResult train(const TrainConfig& config, bool resume, double stop_after_seco
     if (writes) progress.emplace(config.steps, "train");
     double loss_sum = 0;
     int64_t loss_count = 0, first_step = step;
+    int64_t saved_step = state_info.is_null() ? -1 : step;
     while (step < config.steps) {
         Batch batch = loader.next();
         adam.set_lr(learning_rate(config, step));
@@ -252,14 +319,19 @@ TrainResult train(const TrainConfig& config, bool resume, double stop_after_seco
                                 best_extra);
             }
             if (writes) {
-                append_log(log_file, {{"step", step}, {"val_cd", last_val}, {"best", improved},
-                                      {"input_cd", val->input_cd}, {"seconds", elapsed()}});
+                append_log(log_file, {{"step", step},
+                                      {"val_cd", last_val},
+                                      {"best", improved},
+                                      {"input_cd", val->input_cd},
+                                      {"seconds", elapsed()}});
                 spdlog::info("train: step {} val CD {:.4e} (best {:.4e}, input {:.4e})", step,
                              last_val, best_val, val->input_cd);
             }
         }
-        if (writes && (step % config.checkpoint_every == 0 || step == config.steps || stop))
+        if (writes && (step % config.checkpoint_every == 0 || step == config.steps || stop)) {
             save_state();
+            saved_step = step;
+        }
         if (stop) {
             if (writes)
                 spdlog::info("train: time limit reached at step {}; continue with --resume", step);
@@ -267,6 +339,8 @@ TrainResult train(const TrainConfig& config, bool resume, double stop_after_seco
         }
     }
     if (progress) progress->finish();
+    // A fresh run that ends before its first step (steps = 0) still leaves its initial model.
+    if (writes && saved_step != step) save_state();
     // Every rank returns only once rank 0's last checkpoint is on disk.
     group.barrier();
     return {step, best_val, last_val};

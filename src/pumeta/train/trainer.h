@@ -44,6 +44,10 @@ struct TrainConfig {
     int64_t val_patches = 256;
     int64_t checkpoint_every = 500;
     uint64_t seed = 1;
+    /// Optional checkpoint whose parameters and buffers initialise a fresh run wherever name
+    /// and shape match (e.g. an 8x model warm-started from a 4x one: only the ratio-dependent
+    /// upsampling layers keep their random initialisation). Ignored on resume.
+    std::string init_from;
     /// Processes and rendezvous; batch_size must be a multiple of the world size.
     DistributedConfig distributed;
 

@@ -1,0 +1,109 @@
+// Supervised training runs in-process on a tiny patch set: warm starts from a checkpoint of
+// another ratio (init_from) and resuming.
+#include "pumeta/train/trainer.h"
+
+#include <ATen/ATen.h>
+#include <gtest/gtest.h>
+
+#include "pumeta/core/error.h"
+#include "pumeta/data/patch_set.h"
+#include "pumeta/models/backbone.h"
+#include "pumeta/models/checkpoint.h"
+#include "support/test_util.h"
+
+namespace pumeta {
+namespace {
+
+nlohmann::json tiny_pugcn(int64_t ratio, uint64_t seed) {
+    return {{"backbone", "pugcn"},
+            {"ratio", ratio},
+            {"channels", 4},
+            {"k", 4},
+            {"dilation", 2},
+            {"upsample_channels", 4},
+            {"reconstruction_channels", 4},
+            {"patch_size", 16},
+            {"downsampler", "random"},
+            {"seed", seed}};
+}
+
+/// Two "meshes" of random points with six patch seeds each, for ratio `ratio`.
+std::string write_patch_set(const test::TempDir& dir, int64_t ratio) {
+    PatchSet set;
+    set.ratio = ratio;
+    set.patch_points = 16;
+    set.points = test::random_points(400, 5);
+    set.offsets = at::tensor({int64_t{0}, int64_t{200}, int64_t{400}});
+    std::vector<int64_t> seeds;
+    for (int64_t mesh = 0; mesh < 2; ++mesh)
+        for (int64_t i = 0; i < 6; ++i) seeds.insert(seeds.end(), {mesh, i * 31});
+    set.seeds = at::tensor(seeds).view({12, 2});
+    set.ids = {"a", "b"};
+    std::string path = dir.file("train-x" + std::to_string(ratio) + ".tensors");
+    save_patch_set(path, set);
+    return path;
+}
+
+TrainConfig tiny_config(const test::TempDir& dir, int64_t ratio, const std::string& run) {
+    TrainConfig c;
+    c.backbone = tiny_pugcn(ratio, 11);
+    c.train_data = write_patch_set(dir, ratio);
+    c.run_dir = dir.file(run);
+    c.batch_size = 4;
+    c.steps = 0;
+    c.log_every = 1;
+    return c;
+}
+
+TEST(Train, InitFromCopiesEveryTensorWhoseNameAndShapeMatch) {
+    test::TempDir dir;
+    auto source = make_backbone(tiny_pugcn(2, 99));
+    save_checkpoint(dir.file("x2.pt"), *source);
+
+    TrainConfig config = tiny_config(dir, 4, "x4");
+    config.init_from = dir.file("x2.pt");
+    train(config, false);
+    LoadedCheckpoint warm = load_checkpoint(dir.file("x4/model.pt"));
+    auto fresh = make_backbone(tiny_pugcn(4, 11));
+
+    int64_t copied = 0, kept = 0;
+    for (const auto& [name, t] : warm.backbone->parameters()) {
+        const at::Tensor& from = source->parameters().at(name);
+        if (from.sizes() == t.sizes()) {
+            EXPECT_TRUE(at::equal(t, from)) << name;
+            ++copied;
+        } else {
+            // The ratio-dependent layers keep the fresh model's initialisation.
+            EXPECT_TRUE(at::equal(t, fresh->parameters().at(name))) << name;
+            ++kept;
+        }
+    }
+    EXPECT_GT(copied, 0);
+    EXPECT_GT(kept, 0);
+}
+
+TEST(Train, InitFromAnotherBackboneIsAnInputErrorNamingTheFile) {
+    test::TempDir dir;
+    nlohmann::json other = {{"backbone", "dispu"}, {"ratio", 4}, {"preset", "compact"}};
+    save_checkpoint(dir.file("dispu.pt"), *make_backbone(other));
+    TrainConfig config = tiny_config(dir, 4, "x4");
+    config.init_from = dir.file("dispu.pt");
+    try {
+        train(config, false);
+        FAIL() << "expected an InputError";
+    } catch (const InputError& e) {
+        EXPECT_NE(std::string(e.what()).find("dispu.pt"), std::string::npos) << e.what();
+    }
+}
+
+TEST(Train, InitFromIsRecordedAndJsonRoundTrips) {
+    test::TempDir dir;
+    TrainConfig config = tiny_config(dir, 4, "x4");
+    config.init_from = "models/pugcn-x4.pt";
+    TrainConfig back = TrainConfig::from_json(config.to_json());
+    EXPECT_EQ(back.init_from, config.init_from);
+    EXPECT_EQ(back.to_json(), config.to_json());
+}
+
+}  // namespace
+}  // namespace pumeta
