@@ -2,6 +2,8 @@
 # Benchmarks with ratios against baselines measured in the same run (medians of 5).
 #   scripts/bench.sh foundation   kNN, Chamfer, FPS, Poisson disk, PLY reading (issue: foundation)
 #   scripts/bench.sh upsample     whole-cloud 2,048 -> 8,192 upsampling, plain vs adaptation
+#   scripts/bench.sh memory       peak resident memory of `pumeta upsample` on 10k, 100k and 1M
+#                                 input points (GNU time), ratio vs the 10k run
 #   scripts/bench.sh all
 # Run on an idle machine: the script warns when the load average says otherwise. Open3D
 # reference rows need `apt-get install libopen3d-dev` before building (optional).
@@ -35,11 +37,36 @@ fi
 if [[ $what == upsample || $what == all ]]; then
     run upsample bench_inference_upsample '.'
 fi
+if [[ $what == memory || $what == all ]]; then
+    # Inputs: uniform samples of one generated shape; the shipped 4x model, 2 threads.
+    mem=$out/memory
+    mkdir -p "$mem"
+    "$build/pumeta" gen-shapes --count 1 --seed 7 -o "$mem/shape" > /dev/null
+    mesh=$(ls "$mem"/shape/*.ply | head -1)
+    echo "== peak memory of pumeta upsample, 4x, 2 threads (GNU time, max resident set)"
+    base_kb=""
+    for n in 10000 100000 1000000; do
+        "$build/pumeta" sample "$mesh" -n "$n" --method uniform --seed 1 -o "$mem/in.ply" \
+            2> /dev/null
+        /usr/bin/time -f "%M %e" -o "$mem/time" "$build/pumeta" --threads 2 upsample \
+            "$mem/in.ply" -o "$mem/out.ply" 2> /dev/null > /dev/null
+        read -r kb secs < "$mem/time"
+        base_kb=${base_kb:-$kb}
+        python3 -c "import sys; n, kb, base, s = map(float, sys.argv[1:]); \
+arrays = n * 12 * 5 / 2**20; \
+print(f'{int(n):>9,d} -> {int(4 * n):>9,d} points  {s:7.1f} s  peak {kb / 1024:7.0f} MiB' \
+      f'  ({kb / base:4.2f}x the 10k run; input+output arrays {arrays:5.0f} MiB)')" \
+            "$n" "$kb" "$base_kb" "$secs"
+        rm -f "$mem/in.ply" "$mem/out.ply"
+    done
+fi
 python3 - "$out" "$what" <<'PY'
 import json, os, sys
 out, what = sys.argv[1], sys.argv[2]
 medians = {}
 for name in os.listdir(out):
+    if not name.endswith(".json"):
+        continue
     with open(os.path.join(out, name)) as f:
         text = f.read()
     if not text.strip():

@@ -18,14 +18,9 @@ const nlohmann::json kArchitecture = {{"backbone", "pugcn"},    {"ratio", 4},
                                       {"upsample_channels", 8}, {"reconstruction_channels", 8},
                                       {"patch_size", 64},       {"seed", 123}};
 
-/// Points on a wavy sheet (a surface, so patches and their downsampling are meaningful).
-at::Tensor sheet(int64_t n, uint64_t seed) {
-    at::Tensor uv = test::random_points(n, seed).slice(1, 0, 2);
-    return at::stack({uv.select(1, 0), uv.select(1, 1),
-                      0.3 * at::sin(3 * uv.select(1, 0)) * at::cos(2 * uv.select(1, 1))},
-                     1)
-        .contiguous();
-}
+/// Points on a curved sheet, [n,3] (a surface, so patches and their downsampling mean
+/// something).
+at::Tensor sheet(int64_t n, uint64_t seed) { return test::sheet(1, n, seed)[0].contiguous(); }
 
 TEST(ZeroShot, TrainingOnTheInputAloneLowersItsSelfSupervisedLoss) {
     ZeroShotOptions options;

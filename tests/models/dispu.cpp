@@ -25,14 +25,6 @@ namespace pumeta {
 
 namespace {
 
-// A small surface patch: points on a gently curved sheet, [B,n,3].
-at::Tensor sheet(int64_t batch, int64_t n, uint64_t seed, at::ScalarType type = at::kFloat) {
-    at::Generator gen = at::detail::createCPUGenerator(seed);
-    at::Tensor uv = at::rand({batch, n, 2}, gen, at::TensorOptions().dtype(type)) * 2 - 1;
-    at::Tensor u = uv.select(2, 0), v = uv.select(2, 1);
-    return at::stack({u, v, 0.3 * at::sin(2 * u) * at::cos(v)}, -1);
-}
-
 // A very small Dis-PU for tests that train, differentiate twice or run many passes.
 nlohmann::json tiny_config(int64_t ratio = 4) {
     return {{"backbone", "dispu"},
@@ -136,7 +128,7 @@ TEST(DisPu, ParameterCountsMatchTheOfficialModel) {
 }
 
 TEST(DisPu, OutputShapesForEveryRatioAtPaperWidth) {
-    at::Tensor x = sheet(1, 256, 1);
+    at::Tensor x = test::sheet(1, 256, 1);
     at::NoGradGuard no_grad;
     for (int64_t ratio : {4, 8, 16}) {
         DisPu model = make({{"ratio", ratio}});
@@ -170,7 +162,7 @@ TEST(DisPu, GridCodeFollowsTheOriginalFactorisation) {
 
 TEST(DisPu, DuplicatesAreCopyMajorAndDifferOnlyByTheirGridCode) {
     DisPu model = make(tiny_config());
-    at::Tensor x = sheet(2, 16, 2);
+    at::Tensor x = test::sheet(2, 16, 2);
     ParamMap params = model.parameters();
     at::NoGradGuard no_grad;
     at::Tensor coarse = model.forward(x, params, NormStatistics::kRunning).coarse;
@@ -186,7 +178,7 @@ TEST(DisPu, DuplicatesAreCopyMajorAndDifferOnlyByTheirGridCode) {
 
 TEST(DisPu, OffsetsAreBoundedAndAddedToTheCoarsePoints) {
     DisPu model = make(tiny_config());
-    at::Tensor x = sheet(2, 16, 3);
+    at::Tensor x = test::sheet(2, 16, 3);
     ParamMap params = model.parameters();
     params["fine.fc2.weight"] = at::zeros_like(params["fine.fc2.weight"]);
     params["fine.fc2.bias"] = at::tensor({100.f, -100.f, 0.f});
@@ -198,7 +190,7 @@ TEST(DisPu, OffsetsAreBoundedAndAddedToTheCoarsePoints) {
 
 TEST(DisPu, CoarseOutputDoesNotDependOnTheRefiner) {
     DisPu model = make(tiny_config());
-    at::Tensor x = sheet(1, 16, 4);
+    at::Tensor x = test::sheet(1, 16, 4);
     ParamMap params = model.parameters();
     at::NoGradGuard no_grad;
     DisPuOutput before = model.forward(x, params, NormStatistics::kBatch);
@@ -211,7 +203,7 @@ TEST(DisPu, CoarseOutputDoesNotDependOnTheRefiner) {
 
 TEST(DisPu, PermutingInputPointsPermutesEveryCopy) {
     DisPu model = make({{"preset", "compact"}, {"seed", 5}});
-    at::Tensor x = sheet(1, 64, 5);
+    at::Tensor x = test::sheet(1, 64, 5);
     at::Generator gen = at::detail::createCPUGenerator(6);
     at::Tensor perm = at::randperm(64, gen, at::TensorOptions().dtype(at::kLong));
     at::NoGradGuard no_grad;
@@ -243,8 +235,8 @@ TEST(DisPu, LossCombinesCoarseFineAndRepulsionTermsWithTheSchedule) {
     config["steps_per_epoch"] = 1;
     config["repulsion_weight"] = 2.0;
     DisPu model = make(config);
-    at::Tensor input = sheet(2, 16, 7);
-    at::Tensor target = sheet(2, 64, 8);
+    at::Tensor input = test::sheet(2, 16, 7);
+    at::Tensor target = test::sheet(2, 64, 8);
     auto expected = [&](double w) {
         DisPuOutput out = model.forward(input, model.parameters(), NormStatistics::kBatch);
         return 2000 * chamfer_loss(out.coarse, target).item<double>() +
@@ -265,7 +257,7 @@ TEST(DisPu, LossCombinesCoarseFineAndRepulsionTermsWithTheSchedule) {
 
 TEST(DisPu, CompactModelOverfitsOnePatch) {
     DisPu model = make({{"preset", "compact"}, {"steps_per_epoch", 1}, {"seed", 2}});
-    at::Tensor dense = sheet(1, 256, 9);
+    at::Tensor dense = test::sheet(1, 256, 9);
     at::Tensor input = dense.narrow(1, 0, 64);
     Adam adam(model.parameters(), AdamOptions{1e-3});
     const int64_t step = 100;  // fine weight 1
@@ -289,7 +281,7 @@ TEST(DisPu, SecondOrderMetaGradientMatchesFiniteDifferences) {
     for (auto& [name, p] : model->parameters())
         p = (p.detach().to(at::kDouble) + 0.05 * at::randn(p.sizes(), gen, f64))
                 .requires_grad_(true);
-    at::Tensor y = sheet(2, 32, 13, at::kDouble);
+    at::Tensor y = test::sheet(2, 32, 13, at::kDouble);
     at::Tensor x = y.slice(1, 0, 32, 2).contiguous();  // every other point: a 2x task
     MetaOptions options;
     options.inner_steps = 2;
@@ -332,8 +324,8 @@ TEST(DisPu, SecondOrderMetaGradientMatchesFiniteDifferences) {
 
 TEST(DisPu, BatchNormBuffersChangeOnlyThroughUpdateBuffers) {
     DisPu model = make(tiny_config());
-    at::Tensor x = sheet(2, 16, 14);
-    at::Tensor y = sheet(2, 64, 15);
+    at::Tensor x = test::sheet(2, 16, 14);
+    at::Tensor y = test::sheet(2, 64, 15);
     ParamMap before = snapshot(model.buffers());
     at::Tensor plain = model.upsample(x).detach();
 
@@ -378,7 +370,7 @@ TEST(DisPu, BatchNormBuffersChangeOnlyThroughUpdateBuffers) {
 TEST(DisPu, CheckpointAndTrainingStateRoundTripIncludingBuffers) {
     test::TempDir dir;
     DisPu model = make(tiny_config());
-    at::Tensor x = sheet(2, 16, 16);
+    at::Tensor x = test::sheet(2, 16, 16);
     for (int i = 0; i < 3; ++i) model.update_buffers(x, model.parameters());
     {
         at::NoGradGuard no_grad;
@@ -514,8 +506,8 @@ TEST(DisPu, InvalidConfigsAreInputErrorsNamingTheField) {
 
 TEST(DisPu, TooFewPointsOrWrongTypesAreInputErrors) {
     DisPu model = make(tiny_config());
-    EXPECT_THROW(model.upsample(sheet(1, 1, 1)), InputError);
-    EXPECT_THROW(model.upsample(sheet(1, 16, 1, at::kDouble)), InputError);
+    EXPECT_THROW(model.upsample(test::sheet(1, 1, 1)), InputError);
+    EXPECT_THROW(model.upsample(test::sheet(1, 16, 1, at::kDouble)), InputError);
     EXPECT_THROW(model.upsample(at::zeros({1, 16, 2})), InputError);
     EXPECT_THROW(model.update_buffers(at::zeros({16, 3}), model.parameters()), InputError);
 }

@@ -23,14 +23,6 @@
 namespace pumeta {
 namespace {
 
-/// A gently curved sheet of n points per element in [-1,1]², [B,n,3].
-at::Tensor sheet(int64_t batch, int64_t n, uint64_t seed, at::ScalarType type = at::kFloat) {
-    at::Generator gen = at::detail::createCPUGenerator(seed);
-    at::Tensor uv = at::rand({batch, n, 2}, gen, at::TensorOptions().dtype(type)) * 2 - 1;
-    at::Tensor u = uv.select(2, 0), v = uv.select(2, 1);
-    return at::stack({u, v, 0.3 * at::sin(2 * u) * at::cos(v)}, -1);
-}
-
 nlohmann::json tiny_config(int64_t ratio = 4, double resolution = 4) {
     return {{"backbone", "pudense"},    {"ratio", ratio},          {"channels", {4, 4, 8, 8, 8}},
             {"resolution", resolution}, {"downsampler", "random"}, {"seed", 3}};
@@ -93,7 +85,7 @@ TEST(PuDense, ShippedConfigBuildsTheCompactX8Model) {
 }
 
 TEST(PuDense, UpsampleGivesExactlyRNVoxelCentresNearTheInput) {
-    at::Tensor x = sheet(2, 40, 1);
+    at::Tensor x = test::sheet(2, 40, 1);
     // r = 400 asks for more voxels than the generative layer proposes: they repeat.
     for (int64_t ratio : {2, 4, 8, 400}) {
         auto model = tiny_model(ratio);
@@ -116,7 +108,7 @@ TEST(PuDense, UpsampleGivesExactlyRNVoxelCentresNearTheInput) {
 
 TEST(PuDense, LossIsBceAgainstMembershipInTheTargetVoxels) {
     auto model = tiny_model();
-    at::Tensor target = sheet(2, 64, 2);
+    at::Tensor target = test::sheet(2, 64, 2);
     at::Tensor input = target.narrow(1, 0, 16);
     at::Tensor loss = model->loss(input, target, model->parameters());
 
@@ -144,7 +136,7 @@ TEST(PuDense, LossIsBceAgainstMembershipInTheTargetVoxels) {
 
 TEST(PuDense, LossUsesBatchStatisticsAndOnlyUpdateBuffersMovesRunningOnes) {
     auto model = tiny_model();
-    at::Tensor target = sheet(1, 64, 3);
+    at::Tensor target = test::sheet(1, 64, 3);
     at::Tensor input = target.narrow(1, 0, 16);
     double before = model->loss(input, target, model->parameters()).item<double>();
     ParamMap saved;
@@ -163,7 +155,7 @@ TEST(PuDense, LossUsesBatchStatisticsAndOnlyUpdateBuffersMovesRunningOnes) {
 
 TEST(PuDense, RepeatedCallsOnTheSameInputReuseItsKernelMaps) {
     auto model = tiny_model();
-    at::Tensor target = sheet(1, 64, 4);
+    at::Tensor target = test::sheet(1, 64, 4);
     at::Tensor input = target.narrow(1, 0, 16).clone();
     CoordinateSetPtr voxels = model->voxels(input);
     model->loss(input, target, model->parameters());
@@ -187,7 +179,7 @@ TEST(PuDense, OverfitsOneSmallCloud) {
     nlohmann::json config = tiny_config(4);
     config["batch_stats_at_inference"] = true;  // no running statistics are trained here
     PuDense model(PuDenseOptions::from_json(config));
-    at::Tensor target = sheet(1, 96, 5);
+    at::Tensor target = test::sheet(1, 96, 5);
     at::Tensor input = target.narrow(1, 0, 24);
     ParamMap& params = model.parameters();
     const double recall_before = voxel_recall(model, input, target);
@@ -209,7 +201,7 @@ TEST(PuDense, OverfitsOneSmallCloud) {
 
 TEST(PuDense, DownsamplerKeepsAUniformRandomSubset) {
     auto model = tiny_model(4);
-    at::Tensor dense = sheet(2, 64, 6);
+    at::Tensor dense = test::sheet(2, 64, 6);
     at::Tensor sparse = model->downsample(dense, 9);
     ASSERT_EQ(sparse.sizes(), (std::vector<int64_t>{2, 16, 3}));
     for (int64_t b = 0; b < 2; ++b) {
@@ -241,7 +233,7 @@ TEST(PuDense, SecondOrderMetaGradientMatchesFiniteDifferences) {
     for (auto& [name, p] : model->parameters())
         if (name.size() > 5 && name.compare(name.size() - 5, 5, ".beta") == 0)
             p = (p.detach() + 0.1 * at::randn_like(p)).requires_grad_(true);
-    at::Tensor y = sheet(1, 256, 7, at::kDouble);
+    at::Tensor y = test::sheet(1, 256, 7, at::kDouble);
     at::Tensor x = y.slice(1, 0, 256, 4).contiguous();
     MetaOptions options;
     options.inner_steps = 2;

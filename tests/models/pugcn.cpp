@@ -8,18 +8,11 @@
 
 #include "pumeta/core/error.h"
 #include "pumeta/nn/chamfer_loss.h"
+#include "support/test_util.h"
 
 namespace pumeta {
 
 namespace {
-
-// A small surface patch: points on a gently curved sheet, [B,n,3].
-at::Tensor sheet(int64_t batch, int64_t n, uint64_t seed, at::ScalarType type = at::kFloat) {
-    at::Generator gen = at::detail::createCPUGenerator(seed);
-    at::Tensor uv = at::rand({batch, n, 2}, gen, at::TensorOptions().dtype(type)) * 2 - 1;
-    at::Tensor u = uv.select(2, 0), v = uv.select(2, 1);
-    return at::stack({u, v, 0.3 * at::sin(2 * u) * at::cos(v)}, -1);
-}
 
 // Tiny network for tests that train or differentiate twice.
 nlohmann::json tiny_config(int64_t ratio = 4) {
@@ -68,7 +61,7 @@ TEST(PuGcn, ParameterCountsMatchTheOfficialModel) {
 }
 
 TEST(PuGcn, OutputShapesForEveryRatio) {
-    at::Tensor x = sheet(2, 256, 1);
+    at::Tensor x = test::sheet(2, 256, 1);
     for (int64_t ratio : {4, 8, 16}) {
         PuGcn model(PuGcnOptions::from_json({{"ratio", ratio}}));
         at::Tensor y = model.upsample(x);
@@ -79,7 +72,7 @@ TEST(PuGcn, OutputShapesForEveryRatio) {
 
 TEST(PuGcn, OutputsAreOffsetsFromTheirInputPointInConsecutiveGroups) {
     PuGcn model(PuGcnOptions::from_json(tiny_config()));
-    at::Tensor x = sheet(2, 32, 2);
+    at::Tensor x = test::sheet(2, 32, 2);
     ParamMap params = model.parameters();
     params["out.fc2.weight"] = at::zeros_like(params["out.fc2.weight"]);
     params["out.fc2.bias"] = at::tensor({0.5f, -1.f, 2.f});
@@ -90,7 +83,7 @@ TEST(PuGcn, OutputsAreOffsetsFromTheirInputPointInConsecutiveGroups) {
 
 TEST(PuGcn, PermutingInputPointsPermutesTheirOutputGroups) {
     PuGcn model(PuGcnOptions::from_json({{"ratio", 4}, {"seed", 5}}));
-    at::Tensor x = sheet(1, 256, 3);
+    at::Tensor x = test::sheet(1, 256, 3);
     at::Generator gen = at::detail::createCPUGenerator(4);
     at::Tensor perm = at::randperm(256, gen, at::TensorOptions().dtype(at::kLong));
     at::NoGradGuard no_grad;
@@ -103,7 +96,7 @@ TEST(PuGcn, LossIsScaledChamferAndOverfitsOnePatch) {
     nlohmann::json config = tiny_config();
     config["loss_scale"] = 3.0;
     PuGcn model(PuGcnOptions::from_json(config));
-    at::Tensor dense = sheet(1, 128, 5);
+    at::Tensor dense = test::sheet(1, 128, 5);
     at::Tensor input = dense.narrow(1, 0, 32);
     ParamMap& params = model.parameters();
     at::Tensor first = model.loss(input, dense, params);
@@ -139,8 +132,8 @@ TEST(PuGcn, LossIsTwiceDifferentiableAndMatchesFiniteDifferences) {
     // small because kNN graphs, maxima and nearest neighbours switch discretely.
     PuGcn model(PuGcnOptions::from_json(tiny_config()));
     ParamMap theta = perturbed_double(model.parameters(), 9);
-    at::Tensor dense = sheet(2, 128, 6, at::kDouble);
-    at::Tensor input = sheet(2, 32, 7, at::kDouble);
+    at::Tensor dense = test::sheet(2, 128, 6, at::kDouble);
+    at::Tensor input = test::sheet(2, 32, 7, at::kDouble);
     auto grad_norm = [&](const ParamMap& p, bool create_graph) {
         at::Tensor loss = model.loss(input, dense, p);
         auto grads = torch::autograd::grad({loss}, values(p), {}, create_graph, create_graph);
@@ -213,11 +206,11 @@ TEST(PuGcn, InvalidConfigsAreInputErrorsNamingTheField) {
 TEST(PuGcn, SmallPatchesUseFewerNeighboursButOnePointIsAnInputError) {
     PuGcn model(PuGcnOptions::from_json(tiny_config()));
     // Fewer points than k·dilation: the graphs shrink to the points present.
-    at::Tensor small = model.upsample(sheet(1, 8, 1));
+    at::Tensor small = model.upsample(test::sheet(1, 8, 1));
     EXPECT_EQ(small.size(1), 8 * model.ratio());
     EXPECT_TRUE(small.isfinite().all().item<bool>());
-    EXPECT_THROW(model.upsample(sheet(1, 1, 1)), InputError);
-    EXPECT_THROW(model.upsample(sheet(1, 32, 1, at::kDouble)), InputError);
+    EXPECT_THROW(model.upsample(test::sheet(1, 1, 1)), InputError);
+    EXPECT_THROW(model.upsample(test::sheet(1, 32, 1, at::kDouble)), InputError);
     EXPECT_THROW(model.upsample(at::zeros({1, 32, 2})), InputError);
 }
 

@@ -11,10 +11,10 @@
 
 #include "pumeta/data/dataset.h"
 #include "pumeta/data/shapes.h"
+#include "pumeta/geometry/io.h"
 #include "pumeta/meta/maml.h"
 #include "pumeta/models/backbone.h"
 #include "pumeta/models/checkpoint.h"
-#include "pumeta/geometry/io.h"
 
 namespace pumeta::test {
 
@@ -92,12 +92,21 @@ at::Tensor random_points(int64_t n, uint64_t seed) {
     return points;
 }
 
+at::Tensor sheet(int64_t batch, int64_t n, uint64_t seed, at::ScalarType type) {
+    at::Generator gen = at::detail::createCPUGenerator(seed);
+    at::Tensor uv = at::rand({batch, n, 2}, gen, at::TensorOptions().dtype(type)) * 2 - 1;
+    at::Tensor u = uv.select(2, 0), v = uv.select(2, 1);
+    return at::stack({u, v, 0.3 * at::sin(2 * u) * at::cos(v)}, -1);
+}
+
 std::string source_dir() { return PUMETA_SOURCE_DIR; }
 
 void make_raw_tree(const fs::path& raw) {
     fs::path catalogue = raw / "furniture" / "Mini";
     std::vector<std::tuple<std::string, std::string, std::string>> entries = {
-        {"chair", "Kitchen", ""}, {"table", "Kitchen", ""}, {"lamp", "Lights", ""},
+        {"chair", "Kitchen", ""},
+        {"table", "Kitchen", ""},
+        {"lamp", "Lights", ""},
         {"walker", "Characters", "Human, People"}};
     fs::create_directories(catalogue);
     std::ofstream properties(catalogue / "PluginFurnitureCatalog.properties");
@@ -106,9 +115,8 @@ void make_raw_tree(const fs::path& raw) {
         fs::create_directories(catalogue / "mini" / name);
         write_mesh((catalogue / "mini" / name / (name + ".obj")).string(), generate_shape(100 + i));
         properties << "id#" << i + 1 << "=Mini#" << name << "\nname#" << i + 1 << "=" << name
-                   << "\ncategory#" << i + 1 << "=" << category << "\ntags#" << i + 1 << "="
-                   << tags << "\nmodel#" << i + 1 << "=/mini/" << name << "/" << name
-                   << ".obj\n";
+                   << "\ncategory#" << i + 1 << "=" << category << "\ntags#" << i + 1 << "=" << tags
+                   << "\nmodel#" << i + 1 << "=/mini/" << name << "/" << name << ".obj\n";
     }
     fs::path meshes = raw / "cgal" / "data" / "meshes";
     fs::create_directories(meshes);

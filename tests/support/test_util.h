@@ -2,10 +2,10 @@
 #pragma once
 
 #include <ATen/core/Tensor.h>
-#include <nlohmann/json.hpp>
 
 #include <cstdint>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -52,6 +52,10 @@ std::string read_file(const std::string& path);
 
 /// float32 [n,3] points uniform in [-1,1]^3 from a seeded generator.
 at::Tensor random_points(int64_t n, uint64_t seed);
+
+/// A small surface patch: n points per element on a gently curved sheet over [-1,1]²,
+/// [B,n,3], from a seeded generator.
+at::Tensor sheet(int64_t batch, int64_t n, uint64_t seed, at::ScalarType type = at::kFloat);
 
 /// Root of the source tree (for fixtures under tests/data).
 std::string source_dir();

@@ -9,6 +9,7 @@
 #include "pumeta/core/error.h"
 #include "pumeta/core/tensor_checks.h"
 #include "pumeta/geometry/knn.h"
+#include "pumeta/models/config_fields.h"
 #include "pumeta/models/downsample.h"
 #include "pumeta/nn/attention.h"
 #include "pumeta/nn/batch_norm.h"
@@ -57,9 +58,7 @@ void apply_preset(DisPuOptions& o, const std::string& preset) {
 }
 
 int64_t positive_int(const nlohmann::json& value, const std::string& key) {
-    if (!value.is_number_integer() || value.get<int64_t>() < 1)
-        throw_input_error(kContext, "'{}' must be a positive integer, found {}", key, value.dump());
-    return value.get<int64_t>();
+    return positive_int_field(value, key, kContext);
 }
 
 std::string block_prefix(int64_t block) { return "features.block" + std::to_string(block); }
@@ -140,24 +139,11 @@ DisPuOptions DisPuOptions::from_json(const nlohmann::json& config) {
         } else if (auto width = widths.find(key); width != widths.end()) {
             *width->second = positive_int(value, key);
         } else if (key == "downsampler") {
-            if (!value.is_string())
-                throw_input_error(kContext, "'downsampler' must be a string, found {}",
-                                  value.dump());
-            options.downsampler = value.get<std::string>();
-            check_downsampler(options.downsampler, kContext);
+            options.downsampler = downsampler_field(value, kContext);
         } else if (key == "repulsion_weight") {
-            if (!value.is_number() || !(value.get<double>() >= 0))
-                throw_input_error(kContext,
-                                  "'repulsion_weight' must be a non-negative number, found {}",
-                                  value.dump());
-            options.repulsion_weight = value.get<double>();
+            options.repulsion_weight = non_negative_number_field(value, key, kContext);
         } else if (key == "seed") {
-            bool non_negative = value.is_number_unsigned() ||
-                                (value.is_number_integer() && value.get<int64_t>() >= 0);
-            if (!non_negative)
-                throw_input_error(kContext, "'seed' must be a non-negative integer, found {}",
-                                  value.dump());
-            options.seed = value.get<uint64_t>();
+            options.seed = seed_field(value, kContext);
         } else {
             throw_input_error(kContext, "unknown field '{}'", key);
         }

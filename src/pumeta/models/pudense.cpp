@@ -6,6 +6,7 @@
 
 #include "pumeta/core/error.h"
 #include "pumeta/core/tensor_checks.h"
+#include "pumeta/models/config_fields.h"
 #include "pumeta/models/downsample.h"
 #include "pumeta/nn/batch_norm.h"
 #include "pumeta/nn/sparse/sparse_conv.h"
@@ -28,15 +29,11 @@ std::vector<int64_t> preset_channels(const std::string& preset) {
 }
 
 int64_t positive_int(const nlohmann::json& value, const std::string& key) {
-    if (!value.is_number_integer() || value.get<int64_t>() < 1)
-        throw_input_error(kContext, "'{}' must be a positive integer, found {}", key, value.dump());
-    return value.get<int64_t>();
+    return positive_int_field(value, key, kContext);
 }
 
 double positive_number(const nlohmann::json& value, const std::string& key) {
-    if (!value.is_number() || !(value.get<double>() > 0))
-        throw_input_error(kContext, "'{}' must be a positive number, found {}", key, value.dump());
-    return value.get<double>();
+    return positive_number_field(value, key, kContext);
 }
 
 std::string level(const char* name, int64_t index, const char* suffix = "") {
@@ -167,11 +164,7 @@ PuDenseOptions PuDenseOptions::from_json(const nlohmann::json& config) {
         } else if (key == "patch_size") {
             options.patch_size = positive_int(value, key);
         } else if (key == "downsampler") {
-            if (!value.is_string())
-                throw_input_error(kContext, "'downsampler' must be a string, found {}",
-                                  value.dump());
-            options.downsampler = value.get<std::string>();
-            check_downsampler(options.downsampler, kContext);
+            options.downsampler = downsampler_field(value, kContext);
         } else if (key == "loss_scale") {
             options.loss_scale = positive_number(value, key);
         } else if (key == "bn_momentum") {
@@ -184,12 +177,7 @@ PuDenseOptions PuDenseOptions::from_json(const nlohmann::json& config) {
                 throw_input_error(kContext, "'batch_stats_at_inference' must be a boolean");
             options.batch_stats_at_inference = value.get<bool>();
         } else if (key == "seed") {
-            bool non_negative = value.is_number_unsigned() ||
-                                (value.is_number_integer() && value.get<int64_t>() >= 0);
-            if (!non_negative)
-                throw_input_error(kContext, "'seed' must be a non-negative integer, found {}",
-                                  value.dump());
-            options.seed = value.get<uint64_t>();
+            options.seed = seed_field(value, kContext);
         } else {
             throw_input_error(kContext, "unknown field '{}'", key);
         }

@@ -6,6 +6,7 @@
 
 #include "pumeta/core/error.h"
 #include "pumeta/core/tensor_checks.h"
+#include "pumeta/models/config_fields.h"
 #include "pumeta/models/downsample.h"
 #include "pumeta/nn/chamfer_loss.h"
 #include "pumeta/nn/conv.h"
@@ -21,9 +22,7 @@ namespace {
 constexpr const char* kContext = "pugcn config";
 
 int64_t positive_int(const nlohmann::json& value, const std::string& key) {
-    if (!value.is_number_integer() || value.get<int64_t>() < 1)
-        throw_input_error(kContext, "'{}' must be a positive integer, found {}", key, value.dump());
-    return value.get<int64_t>();
+    return positive_int_field(value, key, kContext);
 }
 
 std::string block_prefix(int64_t block) { return "block" + std::to_string(block); }
@@ -54,23 +53,11 @@ PuGcnOptions PuGcnOptions::from_json(const nlohmann::json& config) {
         } else if (key == "patch_size") {
             options.patch_size = positive_int(value, key);
         } else if (key == "downsampler") {
-            if (!value.is_string())
-                throw_input_error(kContext, "'downsampler' must be a string, found {}",
-                                  value.dump());
-            options.downsampler = value.get<std::string>();
-            check_downsampler(options.downsampler, kContext);
+            options.downsampler = downsampler_field(value, kContext);
         } else if (key == "loss_scale") {
-            if (!value.is_number() || !(value.get<double>() > 0))
-                throw_input_error(kContext, "'loss_scale' must be a positive number, found {}",
-                                  value.dump());
-            options.loss_scale = value.get<double>();
+            options.loss_scale = positive_number_field(value, key, kContext);
         } else if (key == "seed") {
-            bool non_negative = value.is_number_unsigned() ||
-                                (value.is_number_integer() && value.get<int64_t>() >= 0);
-            if (!non_negative)
-                throw_input_error(kContext, "'seed' must be a non-negative integer, found {}",
-                                  value.dump());
-            options.seed = value.get<uint64_t>();
+            options.seed = seed_field(value, kContext);
         } else {
             throw_input_error(kContext, "unknown field '{}'", key);
         }
@@ -121,8 +108,7 @@ at::Tensor PuGcn::upsample(const at::Tensor& x, const ParamMap& params) const {
     const int64_t batch = x.size(0), num_points = x.size(1), r = options_.ratio;
     const int64_t dilation = options_.dilation;
     if (num_points < 2)
-        throw_input_error("pugcn input", "needs at least 2 points per patch, found {}",
-                          num_points);
+        throw_input_error("pugcn input", "needs at least 2 points per patch, found {}", num_points);
     // Patches smaller than the graphs need (tiny inputs; X↓ of a 256-point patch at 8x and
     // 16x) use as many neighbours as exist: the weights do not depend on k.
     const int64_t k = std::min(options_.k, num_points - 1);
