@@ -46,7 +46,7 @@ TEST(UpsampleCloud, InputsSmallerThanAPatchWork) {
 TEST(UpsampleCloud, OwnershipMergeGivesExactCountOnLargeInputs) {
     auto model = small_pugcn(4);
     UpsampleOptions options;
-    options.fps_merge_limit = 1000;  // force the merge used for huge clouds
+    options.fps_budget = 1e5;  // force the merge used for huge clouds
     UpsampleResult result = upsample_cloud(*model, sphere_points(2000, 3), options);
     EXPECT_EQ(result.points.size(0), 8000);
 }

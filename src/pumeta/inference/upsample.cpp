@@ -26,13 +26,17 @@ double seconds_since(Clock::time_point start) {
     return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-/// Exactly `count` points out of candidates: FPS when affordable, else random removal or
-/// duplication of the few points by which `candidates` misses `count`.
-at::Tensor select_exactly(const at::Tensor& candidates, int64_t count, int64_t fps_limit,
+/// Exactly `count` points out of candidates: FPS when affordable (fps_budget), else random
+/// removal or duplication of the few points by which `candidates` misses `count`.
+bool fps_affordable(int64_t candidates, int64_t count, double budget) {
+    return static_cast<double>(candidates) * static_cast<double>(count) <= budget;
+}
+
+at::Tensor select_exactly(const at::Tensor& candidates, int64_t count, double fps_budget,
                           uint64_t seed) {
     int64_t m = candidates.size(0);
     if (m == count) return candidates;
-    if (m > count && m <= fps_limit)
+    if (m > count && fps_affordable(m, count, fps_budget))
         return candidates.index_select(0, farthest_point_sampling(candidates, count, 0));
     if (m > count) return candidates.index_select(0, random_subset(m, count, seed));
     at::Tensor extra = candidates.index_select(0, random_subset(m, count - m, seed));
@@ -123,9 +127,9 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
     at::Tensor upsampled = denormalize_patches(patches, at::cat(outputs));  // [P, m, 3]
     int64_t target = r * cloud.size(0);
     at::Tensor candidates = upsampled.reshape({-1, 3}).contiguous();
-    if (candidates.size(0) > options.fps_merge_limit)
+    if (!fps_affordable(candidates.size(0), target, options.fps_budget))
         candidates = merge_by_ownership(cloud, patches, upsampled);
-    return select_exactly(candidates, target, options.fps_merge_limit, options.seed);
+    return select_exactly(candidates, target, options.fps_budget, options.seed);
 }
 
 }  // namespace

@@ -36,9 +36,12 @@ struct UpsampleOptions {
     /// In object mode the inner loss of each step uses at most this many patches (a seeded
     /// minibatch), so adaptation cost stays bounded on huge inputs.
     int64_t tta_max_patches = 64;
-    /// Above this many candidate points, duplicates are removed by patch ownership instead of
-    /// farthest point sampling (which is quadratic).
-    int64_t fps_merge_limit = 300000;
+    /// Farthest point sampling picks the final points when (candidates × output points) is at
+    /// most this (its cost; 4e9 is about 6 s on one core); above it duplicates are first
+    /// removed by patch ownership, which is linear. 2,048 -> 8,192 (2e8), 2,048 -> 16,384
+    /// (8e8) and the second 4× pass of 16× (3.2e9) stay with FPS; 10k inputs at 4× (4.8e9)
+    /// take the merge.
+    double fps_budget = 4e9;
     /// A progress bar over the patch batches on a terminal (`pumeta upsample`; off inside
     /// `pumeta eval`, which has its own).
     bool show_progress = false;
