@@ -26,27 +26,48 @@ namespace fs = std::filesystem;
 MetaTrainConfig MetaTrainConfig::from_json(const nlohmann::json& j) {
     MetaTrainConfig c;
     for (const auto& [key, value] : j.items()) {
-        if (key == "init") c.init = value;
-        else if (key == "train_data") c.train_data = value;
-        else if (key == "val_data") c.val_data = value;
-        else if (key == "run_dir") c.run_dir = value;
-        else if (key == "meta") c.meta = MetaOptions::from_json(value);
-        else if (key == "tasks_per_batch") c.tasks_per_batch = value;
-        else if (key == "steps") c.steps = value;
-        else if (key == "outer_lr") c.outer_lr = value;
-        else if (key == "outer_lr_decay") c.outer_lr_decay = value;
-        else if (key == "outer_lr_decay_steps") c.outer_lr_decay_steps = value;
-        else if (key == "step_size_lr") c.step_size_lr = value;
-        else if (key == "sampler") c.sampler = value;
-        else if (key == "augment") c.augment = value;
-        else if (key == "log_every") c.log_every = value;
-        else if (key == "val_every") c.val_every = value;
-        else if (key == "val_tasks") c.val_tasks = value;
-        else if (key == "checkpoint_every") c.checkpoint_every = value;
-        else if (key == "seed") c.seed = value;
-        else if (key == "distributed") c.distributed = DistributedConfig::from_json(value);
-        else if (key == "comment") continue;
-        else throw_input_error("meta-train config", "unknown field '{}'", key);
+        if (key == "init")
+            c.init = value;
+        else if (key == "train_data")
+            c.train_data = value;
+        else if (key == "val_data")
+            c.val_data = value;
+        else if (key == "run_dir")
+            c.run_dir = value;
+        else if (key == "meta")
+            c.meta = MetaOptions::from_json(value);
+        else if (key == "tasks_per_batch")
+            c.tasks_per_batch = value;
+        else if (key == "steps")
+            c.steps = value;
+        else if (key == "outer_lr")
+            c.outer_lr = value;
+        else if (key == "outer_lr_decay")
+            c.outer_lr_decay = value;
+        else if (key == "outer_lr_decay_steps")
+            c.outer_lr_decay_steps = value;
+        else if (key == "step_size_lr")
+            c.step_size_lr = value;
+        else if (key == "sampler")
+            c.sampler = value;
+        else if (key == "augment")
+            c.augment = value;
+        else if (key == "log_every")
+            c.log_every = value;
+        else if (key == "val_every")
+            c.val_every = value;
+        else if (key == "val_tasks")
+            c.val_tasks = value;
+        else if (key == "checkpoint_every")
+            c.checkpoint_every = value;
+        else if (key == "seed")
+            c.seed = value;
+        else if (key == "distributed")
+            c.distributed = DistributedConfig::from_json(value);
+        else if (key == "comment")
+            continue;
+        else
+            throw_input_error("meta-train config", "unknown field '{}'", key);
     }
     for (const char* field : {"init", "train_data", "run_dir"})
         if (j.value(field, std::string()).empty())
@@ -148,31 +169,18 @@ void append_log(const fs::path& file, const nlohmann::json& record) {
 
 }  // namespace
 
-MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume,
-                           double stop_after_seconds) {
+MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume, double stop_after_seconds) {
     check_blas_speed();
     ProcessGroup group(config.distributed);
     // Rank 0 alone writes the run directory; the others only read it when resuming.
     bool writes = group.is_main();
-    if (writes) fs::create_directories(config.run_dir);
     fs::path state_file = fs::path(config.run_dir) / "state.ckpt";
     fs::path log_file = fs::path(config.run_dir) / "log.jsonl";
-
-    std::unique_ptr<Backbone> model;
-    nlohmann::json info;
-    ParamMap optimizer_state;
-    if (resume && fs::exists(state_file)) {
-        TrainingState state = load_training_state(state_file.string());
-        model = std::move(state.model);
-        info = state.info;
-        optimizer_state = std::move(state.optimizer);
-        if (writes)
-            spdlog::info("meta-train: resuming {} at step {}", config.run_dir,
-                         info.value("step", int64_t{0}));
-    } else {
-        model = load_checkpoint(config.init).backbone;
-        if (writes) fs::remove(log_file);
-    }
+    TrainingState opened = open_run(config.run_dir, resume, writes, "meta-train",
+                                    [&] { return load_checkpoint(config.init).backbone; });
+    std::unique_ptr<Backbone> model = std::move(opened.model);
+    nlohmann::json info = opened.info;
+    ParamMap optimizer_state = std::move(opened.optimizer);
     StepSizes step_sizes;
     if (config.meta.learn_inner_lr) {
         step_sizes = make_step_sizes(*model, config.meta);
@@ -201,7 +209,8 @@ MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume,
     Adam outer(model->parameters(), AdamOptions{config.outer_lr});
     std::optional<Adam> step_size_optimizer;
     if (config.meta.learn_inner_lr)
-        step_size_optimizer.emplace(step_sizes, AdamOptions{config.step_size_lr * config.meta.inner_lr});
+        step_size_optimizer.emplace(step_sizes,
+                                    AdamOptions{config.step_size_lr * config.meta.inner_lr});
     int64_t step = 0;
     double best = std::numeric_limits<double>::infinity();
     AdaptationScore last;
@@ -210,7 +219,8 @@ MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume,
         for (auto& [name, t] : optimizer_state)
             (name.rfind("alpha:", 0) == 0 ? alpha_state[name.substr(6)] : theta_state[name]) = t;
         outer.load_state(theta_state, info.at("adam"));
-        if (step_size_optimizer) step_size_optimizer->load_state(alpha_state, info.at("adam_alpha"));
+        if (step_size_optimizer)
+            step_size_optimizer->load_state(alpha_state, info.at("adam_alpha"));
         step = info.at("step");
         // A run without validation stores its initial infinity, which JSON writes as null.
         if (info.value("best_cd_after", nlohmann::json()).is_number()) best = info["best_cd_after"];
@@ -232,12 +242,13 @@ MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume,
 
     auto model_extra = [&] {
         nlohmann::json meta = config.meta.to_json();
-        return nlohmann::json{{"meta", meta},
-                              {"step_sizes", step_sizes_to_json(step_sizes)},
-                              {"meta_train_config", config.to_json()},
-                              {"sampler", config.sampler},
-                              {"step", step},
-                              {"val", {{"cd_before", last.cd_before}, {"cd_after", last.cd_after}}}};
+        return nlohmann::json{
+            {"meta", meta},
+            {"step_sizes", step_sizes_to_json(step_sizes)},
+            {"meta_train_config", config.to_json()},
+            {"sampler", config.sampler},
+            {"step", step},
+            {"val", {{"cd_before", last.cd_before}, {"cd_after", last.cd_after}}}};
     };
     auto save_state = [&] {
         ParamMap tensors = outer.state();
@@ -260,18 +271,17 @@ MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume,
         if (improved) best = last.cd_after;
         if (!writes) return;
         if (improved)
-            save_checkpoint((fs::path(config.run_dir) / "best.pt").string(), *model,
-                            model_extra());
+            save_checkpoint((fs::path(config.run_dir) / "best.pt").string(), *model, model_extra());
         append_log(log_file, {{"step", step},
                               {"val_cd_before", last.cd_before},
                               {"val_cd_after", last.cd_after},
                               {"val_inner_before", last.inner_loss_before},
                               {"val_inner_after", last.inner_loss_after},
                               {"best", improved}});
-        spdlog::info("meta-train: step {} val CD {:.4e} -> {:.4e} after adaptation (inner "
-                     "{:.4e} -> {:.4e})",
-                     step, last.cd_before, last.cd_after, last.inner_loss_before,
-                     last.inner_loss_after);
+        spdlog::info(
+            "meta-train: step {} val CD {:.4e} -> {:.4e} after adaptation (inner "
+            "{:.4e} -> {:.4e})",
+            step, last.cd_before, last.cd_after, last.inner_loss_before, last.inner_loss_after);
     };
 
     if (val && step == 0) validate();
@@ -293,8 +303,8 @@ MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume,
         bool stop = stop_after_seconds > 0 && elapsed() > stop_after_seconds;
         if (group.enabled()) all_reduce_step(group, r, stop);
         if (!std::isfinite(r.outer_loss))
-            throw InternalError(fmt::format("meta-train: outer loss became {} at step {}",
-                                            r.outer_loss, step));
+            throw InternalError(
+                fmt::format("meta-train: outer loss became {} at step {}", r.outer_loss, step));
         outer.step(r.grads);
         if (step_size_optimizer) step_size_optimizer->step(r.step_size_grads);
         ++step;

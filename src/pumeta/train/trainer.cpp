@@ -188,29 +188,17 @@ TrainResult train(const TrainConfig& config, bool resume, double stop_after_seco
     ProcessGroup group(config.distributed);
     // Rank 0 alone writes the run directory; the others only read it when resuming.
     bool writes = group.is_main();
-    if (writes) fs::create_directories(config.run_dir);
     fs::path state_file = fs::path(config.run_dir) / "state.ckpt";
     fs::path log_file = fs::path(config.run_dir) / "log.jsonl";
-
-    std::unique_ptr<Backbone> model;
-    nlohmann::json state_info;
-    ParamMap optimizer_state;
-    if (resume && fs::exists(state_file)) {
-        TrainingState state = load_training_state(state_file.string());
-        model = std::move(state.model);
-        state_info = state.info;
-        optimizer_state = std::move(state.optimizer);
-        if (writes)
-            spdlog::info("train: resuming {} at step {}", config.run_dir,
-                         state_info.value("step", int64_t{0}));
-    } else {
-        if (resume && writes)
-            spdlog::warn("train: no state in {}; starting from scratch", config.run_dir);
+    TrainingState opened = open_run(config.run_dir, resume, writes, "train", [&] {
         if (config.backbone.is_null()) throw_input_error("train config", "'backbone' is required");
-        model = make_backbone(config.backbone);
-        if (!config.init_from.empty()) initialise_from(*model, config.init_from, writes);
-        if (writes) fs::remove(log_file);
-    }
+        std::unique_ptr<Backbone> fresh = make_backbone(config.backbone);
+        if (!config.init_from.empty()) initialise_from(*fresh, config.init_from, writes);
+        return fresh;
+    });
+    std::unique_ptr<Backbone> model = std::move(opened.model);
+    nlohmann::json state_info = opened.info;
+    ParamMap optimizer_state = std::move(opened.optimizer);
     PatchSet train_set = load_patch_set(config.train_data);
     if (train_set.ratio != model->ratio())
         throw_input_error(config.train_data, "patch set has ratio {} but the model has ratio {}",

@@ -12,9 +12,8 @@
 // running statistics are averaged over the ranks). Rank 0 alone writes the run directory.
 #pragma once
 
-#include <nlohmann/json.hpp>
-
 #include <cstdint>
+#include <nlohmann/json.hpp>
 #include <string>
 
 #include "pumeta/distributed/process_group.h"

@@ -1,6 +1,9 @@
 #include "pumeta/train/training_state.h"
 
 #include <ATen/ATen.h>
+#include <spdlog/spdlog.h>
+
+#include <filesystem>
 
 #include "pumeta/core/error.h"
 #include "pumeta/models/checkpoint.h"
@@ -13,15 +16,14 @@ const std::string kOptim = "optim/";
 const std::string kBuffers = "buffers/";
 }  // namespace
 
-void save_training_state(const std::string& path, const Backbone& model,
-                         const ParamMap& optimizer, const nlohmann::json& info) {
+void save_training_state(const std::string& path, const Backbone& model, const ParamMap& optimizer,
+                         const nlohmann::json& info) {
     ParamMap tensors;
     for (const auto& [name, p] : model.parameters()) tensors[kModel + name] = p.detach();
     for (const auto& [name, b] : model.buffers()) tensors[kBuffers + name] = b;
     for (const auto& [name, t] : optimizer) tensors[kOptim + name] = t.detach();
-    save_tensors(path, tensors, {{"kind", "training_state"},
-                                 {"backbone", model.config()},
-                                 {"info", info}});
+    save_tensors(path, tensors,
+                 {{"kind", "training_state"}, {"backbone", model.config()}, {"info", info}});
 }
 
 TrainingState load_training_state(const std::string& path) {
@@ -53,6 +55,26 @@ TrainingState load_training_state(const std::string& path) {
     for (auto& [name, t] : file.tensors)
         if (name.rfind(kOptim, 0) == 0) state.optimizer[name.substr(kOptim.size())] = t;
     return state;
+}
+
+TrainingState open_run(const std::string& run_dir, bool resume, bool writes,
+                       const std::string& what,
+                       const std::function<std::unique_ptr<Backbone>()>& make_fresh) {
+    namespace fs = std::filesystem;
+    if (writes) fs::create_directories(run_dir);
+    fs::path state_file = fs::path(run_dir) / "state.ckpt";
+    if (resume && fs::exists(state_file)) {
+        TrainingState state = load_training_state(state_file.string());
+        if (writes)
+            spdlog::info("{}: resuming {} at step {}", what, run_dir,
+                         state.info.value("step", int64_t{0}));
+        return state;
+    }
+    if (resume && writes) spdlog::warn("{}: no state in {}; starting from scratch", what, run_dir);
+    TrainingState fresh;
+    fresh.model = make_fresh();
+    if (writes) fs::remove(fs::path(run_dir) / "log.jsonl");
+    return fresh;
 }
 
 }  // namespace pumeta

@@ -48,8 +48,8 @@ double validation_cd(const Backbone& model, const ValidationSet& set, const Para
     std::vector<at::Tensor> outputs;
     for (int64_t start = 0; start < set.input.size(0); start += kChunk) {
         int64_t end = std::min(set.input.size(0), start + kChunk);
-        outputs.push_back(model.upsample(set.input.slice(0, start, end),
-                                         params ? *params : model.parameters()));
+        outputs.push_back(
+            model.upsample(set.input.slice(0, start, end), params ? *params : model.parameters()));
     }
     return mean_chamfer(at::cat(outputs), set.gt);
 }

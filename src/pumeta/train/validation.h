@@ -13,8 +13,8 @@ namespace pumeta {
 class Backbone;
 
 struct ValidationSet {
-    at::Tensor input;  ///< float32 [V, patch_points, 3]
-    at::Tensor gt;     ///< float32 [V, patch_points·r, 3]
+    at::Tensor input;     ///< float32 [V, patch_points, 3]
+    at::Tensor gt;        ///< float32 [V, patch_points·r, 3]
     double input_cd = 0;  ///< CD between input and GT: the "return the input" reference
 };
 
