@@ -147,6 +147,13 @@ TEST(ReproduceConfig, BudgetsOverrideFieldsAndMistakesAreInputErrors) {
     EXPECT_THROW(ReproduceConfig::from_json({{"main_ratios", 4}}, "full"), InputError);
     EXPECT_THROW(ReproduceConfig::from_json({{"main_ratio", "8"}}, "full"), InputError);
     EXPECT_THROW(ReproduceConfig::from_json({{"tta_unit", "scene"}}, "full"), InputError);
+
+    // A step size for one ratio wins over the backbone's.
+    ReproduceConfig lrs = ReproduceConfig::from_json(
+        {{"tta_lr_without_meta", {{"pugcn", 0.03}, {"pugcn-x8", 0.01}}}}, "full");
+    EXPECT_EQ(lrs.tta_lr_for("pugcn", 4), 0.03);
+    EXPECT_EQ(lrs.tta_lr_for("pugcn", 8), 0.01);
+    EXPECT_EQ(lrs.tta_lr_for("dispu", 8), -1);
 }
 
 }  // namespace

@@ -472,6 +472,14 @@ nlohmann::json ReproduceConfig::to_json() const {
             {"budget", budget}};
 }
 
+double ReproduceConfig::tta_lr_for(const std::string& backbone, int64_t ratio) const {
+    for (const std::string& key : {backbone + "-x" + std::to_string(ratio), backbone}) {
+        auto it = tta_lr_without_meta.find(key);
+        if (it != tta_lr_without_meta.end()) return it->second;
+    }
+    return -1;
+}
+
 nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_dir,
                          const std::string& command_line) {
     fs::create_directories(out_dir);
@@ -675,9 +683,7 @@ nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_d
                 per_set([&](const std::string& set) { return network(set, r, *plain, 0); }),
                 {}};
             rows.push_back(base);
-            double lr = config.tta_lr_without_meta.count(backbone)
-                            ? config.tta_lr_without_meta.at(backbone)
-                            : -1;
+            double lr = config.tta_lr_for(backbone, r);
             TableWriter::Row tta{display_name(backbone) + " + TTA w/o meta",
                                  per_set([&](const std::string& set) {
                                      return network(set, r, *plain, config.tta_steps, lr);

@@ -53,8 +53,9 @@ struct ReproduceConfig {
     std::vector<int64_t> steps_sweep = {1, 3, 5, 7, 9};
     /// Backbones of Table V (the paper uses Dis-PU).
     std::vector<std::string> sweep_backbones = {"dispu", "pugcn"};
-    /// Inner step size of "TTA without meta" per backbone, chosen on validation data
-    /// (docs/results.md); a backbone not listed uses its model's inner_lr.
+    /// Inner step size of "TTA without meta" per backbone ("pugcn") or per backbone and
+    /// ratio ("pugcn-x8", which wins), chosen on validation data (models/README.md); a
+    /// backbone not listed uses its model's inner_lr.
     std::map<std::string, double> tta_lr_without_meta;
     /// Seed of the test-time downsampler.
     uint64_t seed = 0;
@@ -66,6 +67,9 @@ struct ReproduceConfig {
     int64_t figure_cases = 4;
     ZeroShotBaseline zero_shot;
     std::string budget = "full";
+
+    /// tta_lr_without_meta for a backbone at a ratio, or -1.
+    double tta_lr_for(const std::string& backbone, int64_t ratio) const;
 
     /// `budget` selects the object of j["budgets"] whose fields override the others.
     static ReproduceConfig from_json(nlohmann::json j, const std::string& budget);
