@@ -30,7 +30,8 @@ struct ModelArgs {
 
 void add_model_options(CLI::App& command, ModelArgs& args) {
     command.add_option("--model", args.model,
-                       "checkpoint (default: the shipped " + default_model_path() + ")");
+                       "checkpoint (default: the shipped PU-GCN for --ratio, " +
+                           default_model_path() + " when no ratio is given)");
     command.add_option("--ratio", args.ratio, "upsampling ratio (default: the model's)")
         ->check(CLI::NonNegativeNumber);
     command.add_option("--seed", args.seed, "seed of the test-time downsampler");
@@ -65,7 +66,7 @@ UpsampleOptions make_upsample_options(const ModelArgs& args, const InferenceMode
 InferenceModel load_model(const ModelArgs& args) {
     std::string device = parse_device(args.device);
     InferenceModel model =
-        load_inference_model(args.model.empty() ? default_model_path() : args.model);
+        load_inference_model(args.model.empty() ? default_model_for_ratio(args.ratio) : args.model);
     model.backbone->to(device);
     return model;
 }

@@ -36,4 +36,16 @@ std::string default_model_path(const std::string& name) {
     return (std::filesystem::path(PUMETA_SOURCE_DIR) / "models" / name).string();
 }
 
+std::string default_model_for_ratio(int64_t ratio) {
+    if (ratio <= 1) return default_model_path();
+    for (int64_t base : {ratio, int64_t{8}, int64_t{4}, int64_t{2}}) {
+        int64_t r = ratio;
+        while (r % base == 0 && r > base) r /= base;
+        if (r != base) continue;
+        std::string path = default_model_path("pugcn-x" + std::to_string(base) + ".pt");
+        if (std::filesystem::exists(path)) return path;
+    }
+    return default_model_path();
+}
+
 }  // namespace pumeta

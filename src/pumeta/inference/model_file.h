@@ -32,4 +32,9 @@ void set_adaptation(UpsampleOptions& options, const InferenceModel& model, doubl
 /// source tree's models/<name>.
 std::string default_model_path(const std::string& name = "pugcn-x4.pt");
 
+/// The shipped PU-GCN for an output ratio (0 = the default 4×): pugcn-x<ratio>.pt when it
+/// exists, else the model of the largest shipped ratio b with ratio a power of b (16: the 4×
+/// model twice), else pugcn-x4.pt (whose ratio check then names the problem).
+std::string default_model_for_ratio(int64_t ratio);
+
 }  // namespace pumeta
