@@ -136,15 +136,10 @@ class Runner {
     /// ratio that the pipeline can apply repeatedly (16× = 4× twice).
     std::optional<std::string> model_file(const std::string& backbone, int64_t ratio,
                                           bool meta) const {
-        for (int64_t base : {ratio, int64_t{8}, int64_t{4}, int64_t{2}}) {
-            int64_t r = ratio;
-            while (r % base == 0 && r > base) r /= base;
-            if (r != base) continue;
-            fs::path file = fs::path(config_.models_dir) / (backbone + "-x" + std::to_string(base) +
-                                                            (meta ? "-meta" : "") + ".pt");
-            if (fs::exists(file)) return file.string();
-        }
-        return std::nullopt;
+        std::string file =
+            model_file_for_ratio(config_.models_dir, backbone, ratio, meta ? "-meta" : "");
+        if (file.empty()) return std::nullopt;
+        return file;
     }
 
     const RunResult& get(const RunSpec& spec) {

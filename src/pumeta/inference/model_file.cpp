@@ -36,16 +36,24 @@ std::string default_model_path(const std::string& name) {
     return (std::filesystem::path(PUMETA_SOURCE_DIR) / "models" / name).string();
 }
 
-std::string default_model_for_ratio(int64_t ratio) {
-    if (ratio <= 1) return default_model_path();
+std::string model_file_for_ratio(const std::string& dir, const std::string& name, int64_t ratio,
+                                 const std::string& suffix) {
     for (int64_t base : {ratio, int64_t{8}, int64_t{4}, int64_t{2}}) {
         int64_t r = ratio;
         while (r % base == 0 && r > base) r /= base;
         if (r != base) continue;
-        std::string path = default_model_path("pugcn-x" + std::to_string(base) + ".pt");
-        if (std::filesystem::exists(path)) return path;
+        std::filesystem::path file =
+            std::filesystem::path(dir) / (name + "-x" + std::to_string(base) + suffix + ".pt");
+        if (std::filesystem::exists(file)) return file.string();
     }
-    return default_model_path();
+    return "";
+}
+
+std::string default_model_for_ratio(int64_t ratio) {
+    if (ratio <= 1) return default_model_path();
+    std::string dir = std::filesystem::path(default_model_path()).parent_path().string();
+    std::string found = model_file_for_ratio(dir, "pugcn", ratio);
+    return found.empty() ? default_model_path() : found;
 }
 
 }  // namespace pumeta

@@ -2,9 +2,8 @@
 // options a meta-trained one carries.
 #pragma once
 
-#include <nlohmann/json.hpp>
-
 #include <memory>
+#include <nlohmann/json.hpp>
 #include <string>
 
 #include "pumeta/inference/upsample.h"
@@ -36,5 +35,11 @@ std::string default_model_path(const std::string& name = "pugcn-x4.pt");
 /// exists, else the model of the largest shipped ratio b with ratio a power of b (16: the 4×
 /// model twice), else pugcn-x4.pt (whose ratio check then names the problem).
 std::string default_model_for_ratio(int64_t ratio);
+
+/// The model file for an output ratio in `dir`: <name>-x<ratio><suffix>.pt when it exists,
+/// else <name>-x<b><suffix>.pt for the largest b in {8, 4, 2} with ratio a power of b (the
+/// pipeline applies it repeatedly). Empty when none exists.
+std::string model_file_for_ratio(const std::string& dir, const std::string& name, int64_t ratio,
+                                 const std::string& suffix = "");
 
 }  // namespace pumeta
