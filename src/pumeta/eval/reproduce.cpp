@@ -494,14 +494,18 @@ nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_d
         s.method = method;
         return s;
     };
-    auto network = [&](const std::string& set, int64_t ratio, const std::string& model,
-                       int64_t steps, double lr = -1, const std::string& noise = "") {
+    auto network_spec = [&](const std::string& set, int64_t ratio, const std::string& model,
+                            int64_t steps, double lr = -1, const std::string& noise = "") {
         RunSpec s = spec(set, ratio, "network");
         s.model = model;
         s.tta_steps = steps;
         s.tta_lr = lr;
         s.noise = noise;
-        return &runner.get(s);
+        return s;
+    };
+    auto network = [&](const std::string& set, int64_t ratio, const std::string& model,
+                       int64_t steps, double lr = -1, const std::string& noise = "") {
+        return &runner.get(network_spec(set, ratio, model, steps, lr, noise));
     };
     // One run per set of config.sets (the column groups of Tables I and IV).
     auto per_set = [&](const std::function<const RunResult*(const std::string&)>& run) {
@@ -744,17 +748,11 @@ nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_d
         for (const std::string& backbone : config.backbones) {
             auto [plain, meta] = models(backbone, r);
             if (!plain) continue;
-            auto network_first = [&](const std::string& set, const std::string& model,
-                                     int64_t steps) {
-                RunSpec s = spec(set, r, "network");
-                s.model = model;
-                s.tta_steps = steps;
-                return first(s);
-            };
-            TableWriter::Row base{
-                display_name(backbone),
-                per_set([&](const std::string& set) { return network_first(set, *plain, 0); }),
-                {}};
+            TableWriter::Row base{display_name(backbone),
+                                  per_set([&](const std::string& set) {
+                                      return first(network_spec(set, r, *plain, 0));
+                                  }),
+                                  {}};
             rows.push_back({display_name(backbone) + " zero-shot (from scratch)",
                             per_set([&](const std::string& set) {
                                 RunSpec s = spec(set, r, "zero-shot");
@@ -767,7 +765,7 @@ nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_d
             if (!meta) continue;
             rows.push_back({display_name(backbone) + " + ours (" + n_label + ")",
                             per_set([&](const std::string& set) {
-                                return network_first(set, *meta, config.tta_steps);
+                                return first(network_spec(set, r, *meta, config.tta_steps));
                             }),
                             base.runs});
         }
