@@ -176,6 +176,24 @@ TEST(DisPu, DuplicatesAreCopyMajorAndDifferOnlyByTheirGridCode) {
     for (int64_t s = 1; s < 4; ++s) EXPECT_TRUE(copies.select(1, s).equal(copies.select(1, 0)));
 }
 
+TEST(DisPu, CoarseResidualAddsEachInputPointToItsCopies) {
+    nlohmann::json config = tiny_config();
+    DisPu absolute = make(config);
+    config["coarse_residual"] = true;
+    DisPu residual = make(config);
+    EXPECT_EQ(residual.config()["coarse_residual"], true);
+    EXPECT_EQ(absolute.config()["coarse_residual"], false);
+    at::Tensor x = test::sheet(2, 16, 4);
+    at::NoGradGuard no_grad;
+    // Same seed, same parameters: only the added input differs.
+    at::Tensor plain = absolute.forward(x, absolute.parameters(), NormStatistics::kRunning).coarse;
+    at::Tensor shifted =
+        residual.forward(x, residual.parameters(), NormStatistics::kRunning).coarse;
+    at::Tensor copies = (shifted - plain).view({2, 4, 16, 3});  // row s·N + i
+    for (int64_t s = 0; s < 4; ++s)
+        EXPECT_TRUE(at::allclose(copies.select(1, s), x, 1e-5, 1e-6)) << "copy " << s;
+}
+
 TEST(DisPu, OffsetsAreBoundedAndAddedToTheCoarsePoints) {
     DisPu model = make(tiny_config());
     at::Tensor x = test::sheet(2, 16, 3);
@@ -502,6 +520,7 @@ TEST(DisPu, InvalidConfigsAreInputErrorsNamingTheField) {
     EXPECT_TRUE(has({{"backbone", "dispu"}, {"downsampler", "grid"}}, "grid"));
     EXPECT_TRUE(has({{"backbone", "dispu"}, {"repulsion_weight", -1}}, "repulsion_weight"));
     EXPECT_TRUE(has({{"backbone", "dispu"}, {"patch_size", 1}}, "patch_size"));
+    EXPECT_TRUE(has({{"backbone", "dispu"}, {"coarse_residual", 1}}, "coarse_residual"));
 }
 
 TEST(DisPu, TooFewPointsOrWrongTypesAreInputErrors) {

@@ -142,6 +142,11 @@ DisPuOptions DisPuOptions::from_json(const nlohmann::json& config) {
             options.downsampler = downsampler_field(value, kContext);
         } else if (key == "repulsion_weight") {
             options.repulsion_weight = non_negative_number_field(value, key, kContext);
+        } else if (key == "coarse_residual") {
+            if (!value.is_boolean())
+                throw_input_error(kContext, "'coarse_residual' must be true or false, found {}",
+                                  value.dump());
+            options.coarse_residual = value.get<bool>();
         } else if (key == "seed") {
             options.seed = seed_field(value, kContext);
         } else {
@@ -171,6 +176,7 @@ nlohmann::json DisPuOptions::to_json() const {
             {"patch_size", patch_size},
             {"downsampler", downsampler},
             {"repulsion_weight", repulsion_weight},
+            {"coarse_residual", coarse_residual},
             {"steps_per_epoch", steps_per_epoch},
             {"seed", seed}};
 }
@@ -284,7 +290,9 @@ at::Tensor DisPu::duplicate_up(const at::Tensor& features, const ParamMap& param
 
 DisPu::Coarse DisPu::generate(const at::Tensor& x, const ParamMap& params) const {
     at::Tensor features = duplicate_up(extract_features(x, params), params);
-    at::Tensor points = regress(features, params, "coarse");  // absolute xyz, no residual
+    at::Tensor points = regress(features, params, "coarse");
+    // Row s·N + i is copy s of point i: x repeated r times along the point axis.
+    if (options_.coarse_residual) points = points + x.repeat({1, options_.ratio, 1});
     return {features, points};
 }
 

@@ -49,6 +49,10 @@ struct DisPuOptions {
     std::string downsampler = "nonuniform";
     /// Weight of the repulsion loss on the fine points (Dis-PU: 1).
     double repulsion_weight = 1.0;
+    /// Add each input point to the coarse regressor's output for its r copies (coarse =
+    /// x + regress(...)), as PU-GCN does, instead of the original's absolute coordinates.
+    /// Off by default (the original); the 2-core presets turn it on (docs/design.md).
+    bool coarse_residual = false;
     /// Training steps per epoch of the fine-loss schedule (see dispu_fine_weight). Default:
     /// the original's epoch, 24,000 PU-GAN patches in batches of 28.
     int64_t steps_per_epoch = 857;
