@@ -105,5 +105,20 @@ TEST(Train, InitFromIsRecordedAndJsonRoundTrips) {
     EXPECT_EQ(back.to_json(), config.to_json());
 }
 
+TEST(Train, ConfigTypeErrorsAreInputErrorsNamingTheField) {
+    test::TempDir dir;
+    nlohmann::json j = tiny_config(dir, 4, "x4").to_json();
+    j["steps"] = "ten";
+    try {
+        TrainConfig::from_json(j);
+        FAIL() << "expected an InputError";
+    } catch (const InputError& e) {
+        EXPECT_STREQ(e.what(), "train config: 'steps' must be an integer, found \"ten\"");
+    }
+    j["steps"] = 3;
+    j["distributed"] = {{"world_size", "two"}};
+    EXPECT_THROW(TrainConfig::from_json(j), InputError);
+}
+
 }  // namespace
 }  // namespace pumeta

@@ -16,6 +16,7 @@
 
 #include "pumeta/core/error.h"
 #include "pumeta/core/hash.h"
+#include "pumeta/core/json_fields.h"
 
 namespace pumeta {
 
@@ -71,25 +72,24 @@ uint64_t fingerprint(const ParamMap& tensors) {
 
 }  // namespace
 
+namespace {
+
+template <class Self, class Visit>
+void visit_fields(Self& c, Visit&& visit) {
+    visit("world_size", c.world_size);
+    visit("rank", c.rank);
+    visit("master", c.master);
+    visit("backend", c.backend);
+    visit("timeout_seconds", c.timeout_seconds);
+    visit("check_every", c.check_every);
+}
+
+}  // namespace
+
 DistributedConfig DistributedConfig::from_json(const nlohmann::json& j) {
     DistributedConfig c;
     if (j.is_null()) return c;
-    for (const auto& [key, value] : j.items()) {
-        if (key == "world_size")
-            c.world_size = value;
-        else if (key == "rank")
-            c.rank = value;
-        else if (key == "master")
-            c.master = value;
-        else if (key == "backend")
-            c.backend = value;
-        else if (key == "timeout_seconds")
-            c.timeout_seconds = value;
-        else if (key == "check_every")
-            c.check_every = value;
-        else
-            throw_input_error("distributed config", "unknown field '{}'", key);
-    }
+    read_fields(j, "distributed config", [&](auto&& visit) { visit_fields(c, visit); });
     if (c.world_size < 1) throw_input_error("distributed config", "world_size must be >= 1");
     if (c.rank < 0 || c.rank >= c.world_size)
         throw_input_error("distributed config", "rank {} is outside [0, {})", c.rank, c.world_size);
@@ -103,12 +103,7 @@ DistributedConfig DistributedConfig::from_json(const nlohmann::json& j) {
 }
 
 nlohmann::json DistributedConfig::to_json() const {
-    return {{"world_size", world_size},
-            {"rank", rank},
-            {"master", master},
-            {"backend", backend},
-            {"timeout_seconds", timeout_seconds},
-            {"check_every", check_every}};
+    return write_fields([&](auto&& visit) { visit_fields(*this, visit); });
 }
 
 void apply_distributed_environment(nlohmann::json& distributed) {

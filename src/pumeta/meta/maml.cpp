@@ -3,31 +3,34 @@
 #include <ATen/ATen.h>
 
 #include "pumeta/core/error.h"
+#include "pumeta/core/json_fields.h"
 #include "pumeta/nn/gradients.h"
 
 namespace pumeta {
 
+namespace {
+
+template <class Self, class Visit>
+void visit_fields(Self& o, Visit&& visit) {
+    visit("inner_steps", o.inner_steps);
+    visit("inner_lr", o.inner_lr);
+    visit("first_order", o.first_order);
+    visit("learn_inner_lr", o.learn_inner_lr);
+    visit("adapt", o.adapt);
+}
+
+}  // namespace
+
 MetaOptions MetaOptions::from_json(const nlohmann::json& j) {
     MetaOptions o;
-    for (const auto& [key, value] : j.items()) {
-        if (key == "inner_steps") o.inner_steps = value;
-        else if (key == "inner_lr") o.inner_lr = value;
-        else if (key == "first_order") o.first_order = value;
-        else if (key == "learn_inner_lr") o.learn_inner_lr = value;
-        else if (key == "adapt") o.adapt = value.get<std::vector<std::string>>();
-        else throw_input_error("meta config", "unknown field '{}'", key);
-    }
+    read_fields(j, "meta config", [&](auto&& visit) { visit_fields(o, visit); });
     if (o.inner_steps < 0) throw_input_error("meta config", "inner_steps must be >= 0");
     if (o.inner_lr < 0) throw_input_error("meta config", "inner_lr must be >= 0");
     return o;
 }
 
 nlohmann::json MetaOptions::to_json() const {
-    return {{"inner_steps", inner_steps},
-            {"inner_lr", inner_lr},
-            {"first_order", first_order},
-            {"learn_inner_lr", learn_inner_lr},
-            {"adapt", adapt}};
+    return write_fields([&](auto&& visit) { visit_fields(*this, visit); });
 }
 
 bool MetaOptions::adapts(const std::string& name) const {

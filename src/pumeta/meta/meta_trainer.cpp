@@ -12,6 +12,7 @@
 
 #include "pumeta/core/blas_check.h"
 #include "pumeta/core/error.h"
+#include "pumeta/core/json_fields.h"
 #include "pumeta/core/progress.h"
 #include "pumeta/data/patch_set.h"
 #include "pumeta/models/checkpoint.h"
@@ -23,55 +24,40 @@ namespace pumeta {
 
 namespace fs = std::filesystem;
 
+namespace {
+
+template <class Self, class Visit>
+void visit_fields(Self& c, Visit&& visit) {
+    visit("init", c.init);
+    visit("train_data", c.train_data);
+    visit("val_data", c.val_data);
+    visit("run_dir", c.run_dir);
+    visit("meta", c.meta);
+    visit("tasks_per_batch", c.tasks_per_batch);
+    visit("steps", c.steps);
+    visit("outer_lr", c.outer_lr);
+    visit("outer_lr_decay", c.outer_lr_decay);
+    visit("outer_lr_decay_steps", c.outer_lr_decay_steps);
+    visit("step_size_lr", c.step_size_lr);
+    visit("sampler", c.sampler);
+    visit("augment", c.augment);
+    visit("log_every", c.log_every);
+    visit("val_every", c.val_every);
+    visit("val_tasks", c.val_tasks);
+    visit("checkpoint_every", c.checkpoint_every);
+    visit("seed", c.seed);
+    visit("distributed", c.distributed);
+}
+
+}  // namespace
+
 MetaTrainConfig MetaTrainConfig::from_json(const nlohmann::json& j) {
     MetaTrainConfig c;
-    for (const auto& [key, value] : j.items()) {
-        if (key == "init")
-            c.init = value;
-        else if (key == "train_data")
-            c.train_data = value;
-        else if (key == "val_data")
-            c.val_data = value;
-        else if (key == "run_dir")
-            c.run_dir = value;
-        else if (key == "meta")
-            c.meta = MetaOptions::from_json(value);
-        else if (key == "tasks_per_batch")
-            c.tasks_per_batch = value;
-        else if (key == "steps")
-            c.steps = value;
-        else if (key == "outer_lr")
-            c.outer_lr = value;
-        else if (key == "outer_lr_decay")
-            c.outer_lr_decay = value;
-        else if (key == "outer_lr_decay_steps")
-            c.outer_lr_decay_steps = value;
-        else if (key == "step_size_lr")
-            c.step_size_lr = value;
-        else if (key == "sampler")
-            c.sampler = value;
-        else if (key == "augment")
-            c.augment = value;
-        else if (key == "log_every")
-            c.log_every = value;
-        else if (key == "val_every")
-            c.val_every = value;
-        else if (key == "val_tasks")
-            c.val_tasks = value;
-        else if (key == "checkpoint_every")
-            c.checkpoint_every = value;
-        else if (key == "seed")
-            c.seed = value;
-        else if (key == "distributed")
-            c.distributed = DistributedConfig::from_json(value);
-        else if (key == "comment")
-            continue;
-        else
-            throw_input_error("meta-train config", "unknown field '{}'", key);
-    }
-    for (const char* field : {"init", "train_data", "run_dir"})
-        if (j.value(field, std::string()).empty())
-            throw_input_error("meta-train config", "'{}' is required", field);
+    read_fields(j, "meta-train config", [&](auto&& visit) { visit_fields(c, visit); });
+    const std::pair<const char*, const std::string*> required[] = {
+        {"init", &c.init}, {"train_data", &c.train_data}, {"run_dir", &c.run_dir}};
+    for (const auto& [key, value] : required)
+        if (value->empty()) throw_input_error("meta-train config", "'{}' is required", key);
     if (c.tasks_per_batch < 1) throw_input_error("meta-train config", "tasks_per_batch < 1");
     if (c.tasks_per_batch % c.distributed.world_size != 0)
         throw_input_error("meta-train config",
@@ -82,25 +68,7 @@ MetaTrainConfig MetaTrainConfig::from_json(const nlohmann::json& j) {
 }
 
 nlohmann::json MetaTrainConfig::to_json() const {
-    return {{"init", init},
-            {"train_data", train_data},
-            {"val_data", val_data},
-            {"run_dir", run_dir},
-            {"meta", meta.to_json()},
-            {"tasks_per_batch", tasks_per_batch},
-            {"steps", steps},
-            {"outer_lr", outer_lr},
-            {"outer_lr_decay", outer_lr_decay},
-            {"outer_lr_decay_steps", outer_lr_decay_steps},
-            {"step_size_lr", step_size_lr},
-            {"sampler", sampler},
-            {"augment", augment},
-            {"log_every", log_every},
-            {"val_every", val_every},
-            {"val_tasks", val_tasks},
-            {"checkpoint_every", checkpoint_every},
-            {"seed", seed},
-            {"distributed", distributed.to_json()}};
+    return write_fields([&](auto&& visit) { visit_fields(*this, visit); });
 }
 
 namespace {

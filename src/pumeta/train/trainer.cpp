@@ -14,6 +14,7 @@
 
 #include "pumeta/core/blas_check.h"
 #include "pumeta/core/error.h"
+#include "pumeta/core/json_fields.h"
 #include "pumeta/core/progress.h"
 #include "pumeta/data/patch_set.h"
 #include "pumeta/models/backbone.h"
@@ -27,52 +28,36 @@ namespace pumeta {
 
 namespace fs = std::filesystem;
 
+namespace {
+
+template <class Self, class Visit>
+void visit_fields(Self& c, Visit&& visit) {
+    visit("backbone", c.backbone);
+    visit("train_data", c.train_data);
+    visit("val_data", c.val_data);
+    visit("run_dir", c.run_dir);
+    visit("batch_size", c.batch_size);
+    visit("steps", c.steps);
+    visit("lr", c.lr);
+    visit("lr_decay_rate", c.lr_decay_rate);
+    visit("lr_decay_steps", c.lr_decay_steps);
+    visit("lr_min", c.lr_min);
+    visit("sampler", c.sampler);
+    visit("augment", c.augment);
+    visit("log_every", c.log_every);
+    visit("val_every", c.val_every);
+    visit("val_patches", c.val_patches);
+    visit("checkpoint_every", c.checkpoint_every);
+    visit("seed", c.seed);
+    visit("init_from", c.init_from);
+    visit("distributed", c.distributed);
+}
+
+}  // namespace
+
 TrainConfig TrainConfig::from_json(const nlohmann::json& j) {
     TrainConfig c;
-    for (const auto& [key, value] : j.items()) {
-        if (key == "backbone")
-            c.backbone = value;
-        else if (key == "train_data")
-            c.train_data = value;
-        else if (key == "val_data")
-            c.val_data = value;
-        else if (key == "run_dir")
-            c.run_dir = value;
-        else if (key == "batch_size")
-            c.batch_size = value;
-        else if (key == "steps")
-            c.steps = value;
-        else if (key == "lr")
-            c.lr = value;
-        else if (key == "lr_decay_rate")
-            c.lr_decay_rate = value;
-        else if (key == "lr_decay_steps")
-            c.lr_decay_steps = value;
-        else if (key == "lr_min")
-            c.lr_min = value;
-        else if (key == "sampler")
-            c.sampler = value;
-        else if (key == "augment")
-            c.augment = value;
-        else if (key == "log_every")
-            c.log_every = value;
-        else if (key == "val_every")
-            c.val_every = value;
-        else if (key == "val_patches")
-            c.val_patches = value;
-        else if (key == "checkpoint_every")
-            c.checkpoint_every = value;
-        else if (key == "seed")
-            c.seed = value;
-        else if (key == "init_from")
-            c.init_from = value;
-        else if (key == "distributed")
-            c.distributed = DistributedConfig::from_json(value);
-        else if (key == "comment")
-            continue;
-        else
-            throw_input_error("train config", "unknown field '{}'", key);
-    }
+    read_fields(j, "train config", [&](auto&& visit) { visit_fields(c, visit); });
     if (c.run_dir.empty()) throw_input_error("train config", "'run_dir' is required");
     if (c.train_data.empty()) throw_input_error("train config", "'train_data' is required");
     if (c.batch_size < 1 || c.steps < 0 || c.lr <= 0)
@@ -85,25 +70,7 @@ TrainConfig TrainConfig::from_json(const nlohmann::json& j) {
 }
 
 nlohmann::json TrainConfig::to_json() const {
-    return {{"backbone", backbone},
-            {"train_data", train_data},
-            {"val_data", val_data},
-            {"run_dir", run_dir},
-            {"batch_size", batch_size},
-            {"steps", steps},
-            {"lr", lr},
-            {"lr_decay_rate", lr_decay_rate},
-            {"lr_decay_steps", lr_decay_steps},
-            {"lr_min", lr_min},
-            {"sampler", sampler},
-            {"augment", augment},
-            {"log_every", log_every},
-            {"val_every", val_every},
-            {"val_patches", val_patches},
-            {"checkpoint_every", checkpoint_every},
-            {"seed", seed},
-            {"init_from", init_from},
-            {"distributed", distributed.to_json()}};
+    return write_fields([&](auto&& visit) { visit_fields(*this, visit); });
 }
 
 namespace {

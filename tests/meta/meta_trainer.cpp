@@ -1,0 +1,76 @@
+// The meta-training config. Meta-training itself runs in tests/distributed/data_parallel.cpp
+// (one and two processes) and tests/eval/reproduce.cpp (the CLI end to end).
+#include "pumeta/meta/meta_trainer.h"
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+#include "pumeta/core/error.h"
+
+namespace pumeta {
+namespace {
+
+nlohmann::json minimal() {
+    return {{"init", "models/pugcn-x4.pt"},
+            {"train_data", "data/dataset/train-x4.tensors"},
+            {"run_dir", "runs/x"}};
+}
+
+std::string error_of(const nlohmann::json& j) {
+    try {
+        MetaTrainConfig::from_json(j);
+    } catch (const InputError& e) {
+        return e.what();
+    }
+    return "no error";
+}
+
+TEST(MetaTrainConfig, ReadsNestedMetaOptionsAndRoundTrips) {
+    nlohmann::json j = minimal();
+    j["meta"] = {{"inner_steps", 3}, {"inner_lr", 0.01}, {"learn_inner_lr", true},
+                 {"adapt", {"out."}}};
+    j["tasks_per_batch"] = 4;
+    j["comment"] = "free text";
+    MetaTrainConfig c = MetaTrainConfig::from_json(j);
+    EXPECT_EQ(c.meta.inner_steps, 3);
+    EXPECT_DOUBLE_EQ(c.meta.inner_lr, 0.01);
+    EXPECT_TRUE(c.meta.learn_inner_lr);
+    EXPECT_FALSE(c.meta.first_order);
+    EXPECT_TRUE(c.meta.adapts("out.fc0.weight"));
+    EXPECT_FALSE(c.meta.adapts("head.weight"));
+    EXPECT_EQ(c.tasks_per_batch, 4);
+    EXPECT_EQ(c.steps, MetaTrainConfig().steps);
+    nlohmann::json written = c.to_json();
+    EXPECT_FALSE(written.contains("comment"));
+    EXPECT_EQ(MetaTrainConfig::from_json(written).to_json(), written);
+}
+
+TEST(MetaTrainConfig, MissingUnknownOrMistypedFieldsAreInputErrors) {
+    for (const char* field : {"init", "train_data", "run_dir"}) {
+        nlohmann::json j = minimal();
+        j.erase(field);
+        EXPECT_EQ(error_of(j), fmt::format("meta-train config: '{}' is required", field));
+    }
+    nlohmann::json j = minimal();
+    j["outer_lr"] = "1e-4";
+    EXPECT_EQ(error_of(j), "meta-train config: 'outer_lr' must be a number, found \"1e-4\"");
+    j = minimal();
+    j["tasks"] = 8;
+    EXPECT_EQ(error_of(j), "meta-train config: unknown field 'tasks'");
+    j = minimal();
+    j["meta"] = {{"inner_step", 5}};
+    EXPECT_EQ(error_of(j), "meta config: unknown field 'inner_step'");
+    j["meta"] = {{"first_order", "yes"}};
+    EXPECT_EQ(error_of(j), "meta config: 'first_order' must be true or false, found \"yes\"");
+    j["meta"] = {{"inner_lr", -1}};
+    EXPECT_EQ(error_of(j), "meta config: inner_lr must be >= 0");
+    j = minimal();
+    j["tasks_per_batch"] = 3;
+    j["distributed"] = {{"world_size", 2}};
+    EXPECT_EQ(error_of(j),
+              "meta-train config: tasks_per_batch 3 does not split evenly over 2 processes");
+}
+
+}  // namespace
+}  // namespace pumeta
