@@ -58,8 +58,12 @@ std::string error_of(const nlohmann::json& j) {
 }
 
 TEST(JsonFields, ReadsGivenFieldsAndKeepsDefaultsForAbsentOnes) {
-    Config c = read({{"steps", 42}, {"lr", 2}, {"adapt", {"up.", "out."}}, {"comment", "ignored"},
-                     {"inner", {{"count", 7}}}, {"anything", {1, "x"}}});
+    Config c = read({{"steps", 42},
+                     {"lr", 2},
+                     {"adapt", {"up.", "out."}},
+                     {"comment", "ignored"},
+                     {"inner", {{"count", 7}}},
+                     {"anything", {1, "x"}}});
     EXPECT_EQ(c.steps, 42);
     EXPECT_DOUBLE_EQ(c.lr, 2.0);  // an integer is a valid number
     EXPECT_EQ(c.adapt, (std::vector<std::string>{"up.", "out."}));
@@ -91,16 +95,19 @@ TEST(JsonFields, WriteThenReadRoundTripsEveryField) {
 
 TEST(JsonFields, UnknownFieldsAndWrongTypesAreInputErrorsNamingTheField) {
     EXPECT_EQ(error_of({{"stpes", 1}}), "test config: unknown field 'stpes'");
-    EXPECT_EQ(error_of({{"steps", "ten"}}), "test config: 'steps' must be an integer, found \"ten\"");
+    EXPECT_EQ(error_of({{"steps", "ten"}}),
+              "test config: 'steps' must be an integer, found \"ten\"");
     EXPECT_EQ(error_of({{"steps", 1.5}}), "test config: 'steps' must be an integer, found 1.5");
-    EXPECT_EQ(error_of({{"seed", -1}}), "test config: 'seed' must be a non-negative integer, found -1");
+    EXPECT_EQ(error_of({{"seed", -1}}),
+              "test config: 'seed' must be a non-negative integer, found -1");
     EXPECT_EQ(error_of({{"lr", "fast"}}), "test config: 'lr' must be a number, found \"fast\"");
     EXPECT_EQ(error_of({{"augment", 1}}), "test config: 'augment' must be true or false, found 1");
     EXPECT_EQ(error_of({{"name", 3}}), "test config: 'name' must be a string, found 3");
     EXPECT_EQ(error_of({{"adapt", {"up.", 2}}}),
               "test config: 'adapt' must be a list of strings, found [\"up.\",2]");
     EXPECT_EQ(error_of({{"inner", 5}}), "inner: expected an object");
-    EXPECT_EQ(error_of(nlohmann::json::array({1})), "test config: expected a JSON object, found [1]");
+    EXPECT_EQ(error_of(nlohmann::json::array({1})),
+              "test config: expected a JSON object, found [1]");
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 #include <fstream>
 #include <set>
 
+#include "pumeta/core/error.h"
 #include "pumeta/data/patch_set.h"
 #include "pumeta/data/shapes.h"
 #include "pumeta/geometry/io.h"
@@ -39,8 +40,8 @@ class DatasetTest : public ::testing::Test {
     static void SetUpTestSuite() {
         dir_ = new test::TempDir();
         test::make_raw_tree(dir_->path() / "raw");
-        manifest_ = new nlohmann::json(
-            make_dataset(tiny_config(dir_->file("raw")), dir_->file("out")));
+        manifest_ =
+            new nlohmann::json(make_dataset(tiny_config(dir_->file("raw")), dir_->file("out")));
     }
     static void TearDownTestSuite() {
         delete manifest_;
@@ -68,6 +69,37 @@ TEST_F(DatasetTest, NoModelInTwoSplitsAndHumansOnlyInEvaluation) {
     for (const auto& m : splits["train"]) EXPECT_FALSE(m["human"].get<bool>());
     for (const auto& m : splits["test-scans"]) EXPECT_EQ(m["id"], "cgal/bunny00");
     for (const auto& m : splits["test-aerial"]) EXPECT_EQ(m["id"], "cgal/b9_training");
+}
+
+TEST_F(DatasetTest, SplitIntegrityCheckAcceptsTheBuildAndRejectsEachViolation) {
+    EXPECT_NO_THROW(check_split_integrity(*manifest_));
+    auto error_of = [](const nlohmann::json& manifest) -> std::string {
+        try {
+            check_split_integrity(manifest);
+        } catch (const InternalError& e) {
+            return e.what();
+        }
+        return "no error";
+    };
+    const nlohmann::json human = (*manifest_)["splits"]["test-humans"][0];
+    const nlohmann::json trained = (*manifest_)["splits"]["train"][0];
+    nlohmann::json bad = *manifest_;
+    bad["splits"]["val"].push_back(human);  // a human figure outside test-humans
+    EXPECT_NE(error_of(bad).find("human figure furniture/Mini/walker in split val"),
+              std::string::npos)
+        << error_of(bad);
+    bad = *manifest_;
+    bad["splits"]["test-indist"].push_back(trained);  // the same model in two splits
+    EXPECT_NE(error_of(bad).find("is in both"), std::string::npos) << error_of(bad);
+    nlohmann::json copy;
+    for (const auto& m : (*manifest_)["splits"]["train"])
+        if (m.contains("sha256")) copy = m;
+    ASSERT_FALSE(copy.is_null());
+    copy["id"] = "furniture/renamed/copy";  // the same file under another name
+    bad = *manifest_;
+    bad["splits"]["test-indist"].push_back(copy);
+    EXPECT_NE(error_of(bad).find("are the same file"), std::string::npos) << error_of(bad);
+    EXPECT_NE(error_of(bad).find("furniture/renamed/copy (test-indist)"), std::string::npos);
 }
 
 TEST_F(DatasetTest, EveryRealModelRecordsItsSha256) {

@@ -28,8 +28,8 @@ std::string error_of(const nlohmann::json& j) {
 
 TEST(MetaTrainConfig, ReadsNestedMetaOptionsAndRoundTrips) {
     nlohmann::json j = minimal();
-    j["meta"] = {{"inner_steps", 3}, {"inner_lr", 0.01}, {"learn_inner_lr", true},
-                 {"adapt", {"out."}}};
+    j["meta"] = {
+        {"inner_steps", 3}, {"inner_lr", 0.01}, {"learn_inner_lr", true}, {"adapt", {"out."}}};
     j["tasks_per_batch"] = 4;
     j["comment"] = "free text";
     MetaTrainConfig c = MetaTrainConfig::from_json(j);

@@ -17,9 +17,8 @@
 // Nested configs are members with their own static from_json and to_json.
 #pragma once
 
-#include <nlohmann/json.hpp>
-
 #include <cstdint>
+#include <nlohmann/json.hpp>
 #include <set>
 #include <string>
 #include <type_traits>
@@ -47,8 +46,7 @@ void read_value(const nlohmann::json& value, const std::string& key, const std::
         if (!value.is_boolean()) wrong("true or false");
         member = value.get<bool>();
     } else if constexpr (std::is_same_v<T, uint64_t>) {
-        if (!value.is_number_integer() ||
-            (!value.is_number_unsigned() && value.get<int64_t>() < 0))
+        if (!value.is_number_integer() || (!value.is_number_unsigned() && value.get<int64_t>() < 0))
             wrong("a non-negative integer");
         member = value.get<uint64_t>();
     } else if constexpr (std::is_integral_v<T>) {

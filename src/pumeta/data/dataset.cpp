@@ -4,8 +4,8 @@
 #include <ATen/Parallel.h>
 #include <spdlog/spdlog.h>
 
-#include <atomic>
 #include <algorithm>
+#include <atomic>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -20,6 +20,7 @@
 #include "pumeta/data/shapes.h"
 #include "pumeta/data/sources.h"
 #include "pumeta/geometry/io.h"
+#include "pumeta/geometry/io/file.h"
 #include "pumeta/geometry/noise.h"
 #include "pumeta/geometry/normalize.h"
 #include "pumeta/geometry/sampling.h"
@@ -31,22 +32,38 @@ namespace fs = std::filesystem;
 DatasetConfig DatasetConfig::from_json(const nlohmann::json& j) {
     DatasetConfig c;
     for (const auto& [key, value] : j.items()) {
-        if (key == "raw_dir") c.raw_dir = value;
-        else if (key == "ratios") c.ratios = value.get<std::vector<int64_t>>();
-        else if (key == "input_points") c.input_points = value;
-        else if (key == "patch_points") c.patch_points = value;
-        else if (key == "patches_per_mesh") c.patches_per_mesh = value;
-        else if (key == "generated_shapes") c.generated_shapes = value;
-        else if (key == "generator_seed") c.generator_seed = value;
-        else if (key == "test_fraction") c.test_fraction = value;
-        else if (key == "val_fraction") c.val_fraction = value;
-        else if (key == "seed") c.seed = value;
-        else if (key == "relative_noise") c.relative_noise = value.get<std::vector<double>>();
-        else if (key == "absolute_noise") c.absolute_noise = value.get<std::vector<double>>();
-        else if (key == "max_models_per_split") c.max_models_per_split = value;
-        else if (key == "splits") c.splits = value.get<std::vector<std::string>>();
-        else if (key == "comment") continue;
-        else throw_input_error("dataset config", "unknown field '{}'", key);
+        if (key == "raw_dir")
+            c.raw_dir = value;
+        else if (key == "ratios")
+            c.ratios = value.get<std::vector<int64_t>>();
+        else if (key == "input_points")
+            c.input_points = value;
+        else if (key == "patch_points")
+            c.patch_points = value;
+        else if (key == "patches_per_mesh")
+            c.patches_per_mesh = value;
+        else if (key == "generated_shapes")
+            c.generated_shapes = value;
+        else if (key == "generator_seed")
+            c.generator_seed = value;
+        else if (key == "test_fraction")
+            c.test_fraction = value;
+        else if (key == "val_fraction")
+            c.val_fraction = value;
+        else if (key == "seed")
+            c.seed = value;
+        else if (key == "relative_noise")
+            c.relative_noise = value.get<std::vector<double>>();
+        else if (key == "absolute_noise")
+            c.absolute_noise = value.get<std::vector<double>>();
+        else if (key == "max_models_per_split")
+            c.max_models_per_split = value;
+        else if (key == "splits")
+            c.splits = value.get<std::vector<std::string>>();
+        else if (key == "comment")
+            continue;
+        else
+            throw_input_error("dataset config", "unknown field '{}'", key);
     }
     for (int64_t r : c.ratios)
         if (r < 2) throw_input_error("dataset config", "ratio {} must be at least 2", r);
@@ -162,8 +179,7 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
         std::map<std::string, int64_t> per_split;
         for (const SourceModel& m : models) {
             std::string split = assign_split(m, config.test_fraction, config.val_fraction);
-            if (config.max_models_per_split > 0 &&
-                per_split[split] >= config.max_models_per_split)
+            if (config.max_models_per_split > 0 && per_split[split] >= config.max_models_per_split)
                 continue;
             ++per_split[split];
             items.push_back({m, split});
@@ -217,29 +233,31 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
                     fs::path dir = cases_root / item.split / fmt::format("x{}", r) / name;
                     fs::create_directories(dir);
                     at::Tensor gt = pts.index_select(
-                        0, random_subset(pts.size(0), n_in * r,
-                                         derive_seed(config.seed, id + "/gt/" + std::to_string(r))));
+                        0,
+                        random_subset(pts.size(0), n_in * r,
+                                      derive_seed(config.seed, id + "/gt/" + std::to_string(r))));
                     at::Tensor input = gt.index_select(
-                        0, random_subset(gt.size(0), n_in,
-                                         derive_seed(config.seed, id + "/in/" + std::to_string(r))));
+                        0,
+                        random_subset(gt.size(0), n_in,
+                                      derive_seed(config.seed, id + "/in/" + std::to_string(r))));
                     write_point_cloud((dir / "input.ply").string(), {input});
                     write_point_cloud((dir / "gt.ply").string(), {gt});
-                    nlohmann::json entry = {{"name", name}, {"id", id}, {"n_in", n_in},
-                                            {"n_gt", gt.size(0)}, {"mesh", nullptr},
-                                            {"gt_alt", nullptr}};
+                    nlohmann::json entry = {{"name", name},    {"id", id},
+                                            {"n_in", n_in},    {"n_gt", gt.size(0)},
+                                            {"mesh", nullptr}, {"gt_alt", nullptr}};
                     nlohmann::json noisy = nlohmann::json::object();
                     for (double p : config.relative_noise) {
                         std::string file = "input_rel" + noise_tag(p) + ".ply";
-                        write_point_cloud((dir / file).string(),
-                                          {add_relative_noise(input, p,
-                                                              derive_seed(config.seed, id + file))});
+                        write_point_cloud(
+                            (dir / file).string(),
+                            {add_relative_noise(input, p, derive_seed(config.seed, id + file))});
                         noisy["rel" + noise_tag(p)] = file;
                     }
                     for (double s : config.absolute_noise) {
                         std::string file = "input_abs" + noise_tag(s) + ".ply";
-                        write_point_cloud((dir / file).string(),
-                                          {add_absolute_noise(input, s,
-                                                              derive_seed(config.seed, id + file))});
+                        write_point_cloud(
+                            (dir / file).string(),
+                            {add_absolute_noise(input, s, derive_seed(config.seed, id + file))});
                         noisy["abs" + noise_tag(s)] = file;
                     }
                     entry["noisy_inputs"] = noisy;
@@ -332,13 +350,15 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
         } else {
             entry["path"] = item.model.path;
             auto sha = raw_sha.find(item.model.path);
-            entry["sha256"] = sha != raw_sha.end() ? sha->second
-                                                    : sha256_file((fs::path(config.raw_dir) /
-                                                                   item.model.path).string());
+            entry["sha256"] =
+                sha != raw_sha.end()
+                    ? sha->second
+                    : sha256_file((fs::path(config.raw_dir) / item.model.path).string());
         }
         splits[item.split].push_back(entry);
     }
     manifest["splits"] = splits;
+    check_split_integrity(manifest);
 
     nlohmann::json counts = nlohmann::json::object();
     for (const char* split : {"train", "val"}) {
@@ -364,16 +384,17 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
             std::string file = fmt::format("{}-x{}.tensors", split, r);
             save_patch_set((fs::path(out_dir) / file).string(), set);
             counts[split][fmt::format("x{}", r)] = {{"file", file},
-                                                   {"meshes", set.num_meshes()},
-                                                   {"patches", set.num_patches()},
-                                                   {"points", set.points.size(0)}};
+                                                    {"meshes", set.num_meshes()},
+                                                    {"patches", set.num_patches()},
+                                                    {"points", set.points.size(0)}};
         }
     }
     for (auto& [set, per_ratio] : cases) {
         for (auto& [r, list] : per_ratio) {
-            std::sort(list.begin(), list.end(), [](const nlohmann::json& a, const nlohmann::json& b) {
-                return a["name"] < b["name"];
-            });
+            std::sort(list.begin(), list.end(),
+                      [](const nlohmann::json& a, const nlohmann::json& b) {
+                          return a["name"] < b["name"];
+                      });
             nlohmann::json index = {{"set", set}, {"ratio", r}, {"cases", list}};
             fs::path dir = cases_root / set / fmt::format("x{}", r);
             std::ofstream((dir / "cases.json").string()) << index.dump(2) << "\n";
@@ -388,8 +409,34 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
         for (int64_t r : config.ratios) manifest_name += "-x" + std::to_string(r);
         manifest_name += ".json";
     }
-    std::ofstream(fs::path(out_dir) / manifest_name) << manifest.dump(2) << "\n";
+    io::write_atomically((fs::path(out_dir) / manifest_name).string(), manifest.dump(2) + "\n");
     return manifest;
+}
+
+void check_split_integrity(const nlohmann::json& manifest) {
+    struct Place {
+        std::string split, id;
+    };
+    std::map<std::string, Place> by_id, by_file;
+    for (const auto& [split, models] : manifest.at("splits").items()) {
+        for (const nlohmann::json& m : models) {
+            const std::string id = m.at("id").get<std::string>();
+            if (m.at("human").get<bool>() && split != "test-humans")
+                throw InternalError(fmt::format(
+                    "dataset: human figure {} in split {} (only test-humans may hold one)", id,
+                    split));
+            if (auto [it, fresh] = by_id.emplace(id, Place{split, id}); !fresh)
+                throw InternalError(
+                    fmt::format("dataset: {} is in both {} and {}", id, it->second.split, split));
+            if (!m.contains("sha256")) continue;
+            const std::string sha = m["sha256"].get<std::string>();
+            auto [it, fresh] = by_file.emplace(sha, Place{split, id});
+            if (!fresh && it->second.split != split)
+                throw InternalError(
+                    fmt::format("dataset: {} ({}) and {} ({}) are the same file (SHA-256 {})",
+                                it->second.id, it->second.split, id, split, sha.substr(0, 16)));
+        }
+    }
 }
 
 }  // namespace pumeta

@@ -14,9 +14,8 @@
 //   cases/<set>/x<r>/cases.json        the list of cases with their files
 #pragma once
 
-#include <nlohmann/json.hpp>
-
 #include <cstdint>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -64,5 +63,10 @@ TriangleMesh normalize_to_unit_sphere(TriangleMesh mesh, const std::string& what
 /// Builds the whole dataset into out_dir (created; existing files are overwritten).
 /// Returns the manifest (also written to out_dir/manifest.json). Logs progress.
 nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_dir);
+
+/// Checks a manifest's "splits": no model id in two splits, no file (by SHA-256) in two
+/// splits, human figures only in test-humans. make_dataset runs it before writing the patch sets
+/// and the manifest; InternalError naming the model otherwise.
+void check_split_integrity(const nlohmann::json& manifest);
 
 }  // namespace pumeta

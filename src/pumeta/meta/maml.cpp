@@ -83,8 +83,8 @@ ParamMap adapt(const Backbone& model, const ParamMap& params, const at::Tensor& 
         for (auto& [name, p] : adapting) {
             at::Tensor g = grads.at(name);
             auto alpha = step_sizes.find(name);
-            at::Tensor next = alpha != step_sizes.end() ? p - alpha->second * g
-                                                        : p - options.inner_lr * g;
+            at::Tensor next =
+                alpha != step_sizes.end() ? p - alpha->second * g : p - options.inner_lr * g;
             if (!create_graph) next = next.detach().requires_grad_(true);
             p = next;
             fast[name] = next;
@@ -96,8 +96,8 @@ ParamMap adapt(const Backbone& model, const ParamMap& params, const at::Tensor& 
 }
 
 MetaStepResult meta_gradient(const Backbone& model, const at::Tensor& x, const at::Tensor& y,
-                             const MetaOptions& options, const StepSizes& step_sizes,
-                             uint64_t seed, int64_t step) {
+                             const MetaOptions& options, const StepSizes& step_sizes, uint64_t seed,
+                             int64_t step) {
     const ParamMap& theta = model.parameters();
     int64_t tasks = x.size(0);
     MetaStepResult result;
