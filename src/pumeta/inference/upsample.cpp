@@ -127,9 +127,12 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
     at::Tensor upsampled = denormalize_patches(patches, at::cat(outputs));  // [P, m, 3]
     int64_t target = r * cloud.size(0);
     at::Tensor candidates = upsampled.reshape({-1, 3}).contiguous();
-    if (!fps_affordable(candidates.size(0), target, options.fps_budget))
-        candidates = merge_by_ownership(cloud, patches, upsampled);
-    return select_exactly(candidates, target, options.fps_budget, options.seed);
+    if (fps_affordable(candidates.size(0), target, options.fps_budget))
+        return select_exactly(candidates, target, options.fps_budget, options.seed);
+    // The merge leaves about `target` points: the few extra or missing go at random (an FPS
+    // over all of them to drop a few hundred would cost as much as the network).
+    candidates = merge_by_ownership(cloud, patches, upsampled);
+    return select_exactly(candidates, target, /*fps_budget=*/0, options.seed);
 }
 
 }  // namespace
