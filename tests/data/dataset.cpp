@@ -140,6 +140,26 @@ TEST_F(DatasetTest, TestCasesHaveTheProtocolsCountsAndANormalisedMesh) {
     EXPECT_EQ(read_point_cloud((scan / "gt.ply").string()).size(), 2000);
 }
 
+TEST_F(DatasetTest, ValidationObjectsGetCasesTooAndTrainingObjectsDoNot) {
+    test::TempDir out;
+    DatasetConfig config = tiny_config(dir_->file("raw"));
+    config.val_fraction = 0.6;  // some furniture goes to val
+    config.splits = {"train", "val"};
+    nlohmann::json manifest = make_dataset(config, out.file("ds"));
+    const size_t val_meshes = manifest["splits"]["val"].size();
+    ASSERT_GE(val_meshes, 1u);
+    nlohmann::json index = nlohmann::json::parse(
+        std::ifstream(out.path() / "ds" / "cases" / "val" / "x4" / "cases.json"));
+    EXPECT_EQ(index["cases"].size(), val_meshes);
+    EXPECT_EQ(manifest["counts"]["val"]["x4"]["cases"], val_meshes);
+    fs::path first =
+        out.path() / "ds" / "cases" / "val" / "x4" / index["cases"][0]["name"].get<std::string>();
+    EXPECT_EQ(read_point_cloud((first / "input.ply").string()).size(), 128);
+    EXPECT_EQ(read_point_cloud((first / "gt.ply").string()).size(), 512);
+    EXPECT_FALSE(fs::exists(out.path() / "ds" / "cases" / "train"));
+    EXPECT_TRUE(fs::exists(out.path() / "ds" / "val-x4.tensors"));
+}
+
 TEST_F(DatasetTest, SameSeedSameDatasetAndPatchSetRoundTrips) {
     test::TempDir again;
     make_dataset(tiny_config(dir_->file("raw")), again.file("out"));

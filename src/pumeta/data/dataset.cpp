@@ -278,9 +278,11 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
                     clouds[i][r] = {cloud.points,
                                     farthest_point_sampling(cloud.points, count, start)};
                 }
-                return;
+                // Validation objects also get test-style cases (cases/val/): object-level
+                // tuning (e.g. of test-time adaptation) without touching a test set.
+                if (item.split == "train") return;
             }
-            // A test object with a mesh.
+            // A test (or validation) object with a mesh.
             std::string name = case_name(id);
             fs::path mesh_file = cases_root / item.split / "meshes" / (name + ".ply");
             fs::create_directories(mesh_file.parent_path());
@@ -398,7 +400,7 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
             nlohmann::json index = {{"set", set}, {"ratio", r}, {"cases", list}};
             fs::path dir = cases_root / set / fmt::format("x{}", r);
             std::ofstream((dir / "cases.json").string()) << index.dump(2) << "\n";
-            counts[set][fmt::format("x{}", r)] = {{"cases", list.size()}};
+            counts[set][fmt::format("x{}", r)]["cases"] = list.size();
         }
     }
     manifest["counts"] = counts;
