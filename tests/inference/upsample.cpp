@@ -78,6 +78,29 @@ TEST(UpsampleCloud, PatchUnitAdaptsEachPatch) {
     EXPECT_TRUE(std::isfinite(result.loss_after));
 }
 
+TEST(UpsampleCloud, CloudUnitAdaptsOnTheDownsampledWholeCloud) {
+    auto model = small_pugcn(4);
+    at::Tensor input = sphere_points(400, 8);
+    UpsampleOptions plain;
+    UpsampleResult base = upsample_cloud(*model, input, plain);
+    UpsampleOptions options;
+    options.tta_steps = 3;
+    options.meta.inner_lr = 0.05;
+    options.tta_unit = "cloud";
+    UpsampleResult cloud = upsample_cloud(*model, input, options);
+    EXPECT_EQ(cloud.points.size(0), 1600);
+    EXPECT_LT(cloud.loss_after, cloud.loss_before);
+    EXPECT_FALSE(cloud.points.equal(base.points));  // θ' differs from θ
+    EXPECT_TRUE(cloud.points.equal(upsample_cloud(*model, input, options).points));
+    // A different task from the object unit's (patches of X, each downsampled by r).
+    options.tta_unit = "object";
+    UpsampleResult object = upsample_cloud(*model, input, options);
+    EXPECT_GT(std::abs(object.loss_before - cloud.loss_before), 1e-6 * object.loss_before);
+    // Too few points to downsample the whole cloud by r.
+    options.tta_unit = "cloud";
+    EXPECT_THROW(upsample_cloud(*model, sphere_points(6, 9), options), InputError);
+}
+
 TEST(UpsampleCloud, RatioThatIsNotAPowerOfTheModelsIsAnInputError) {
     auto model = small_pugcn(4);
     UpsampleOptions options;

@@ -38,8 +38,11 @@ void add_model_options(CLI::App& command, ModelArgs& args) {
     command.add_option("--tta-steps", args.tta_steps,
                        "test-time adaptation steps N (default: a meta-trained model's N, else 0)");
     command.add_option("--tta-lr", args.tta_lr, "inner step size (default: the model's)");
-    command.add_option("--tta-unit", args.tta_unit, "adapt once per object or per patch")
-        ->check(CLI::IsMember({"object", "patch"}));
+    command
+        .add_option("--tta-unit", args.tta_unit,
+                    "object: one adaptation on the input's patches, each downsampled; patch: "
+                    "one per patch; cloud: one on patches of the downsampled whole input")
+        ->check(CLI::IsMember({"object", "patch", "cloud"}));
     command.add_option("--batch-patches", args.batch_patches, "patches per forward pass")
         ->check(CLI::PositiveNumber);
     command.add_option("--device", args.device, "cpu or cuda");

@@ -58,6 +58,36 @@ at::Tensor merge_by_ownership(const at::Tensor& cloud, const Patches& patches,
     return flat.index({keep});
 }
 
+/// The self-supervised pair of the "cloud" unit: X↓ = the backbone's downsampler on the whole
+/// cloud (N/r points), cut into patches of the network's size; each is paired with the
+/// patch_size·r points of X nearest to its seed, both normalised by that target's centroid
+/// and radius (as training pairs are). The network thus adapts on inputs of its usual size
+/// and density relative to the patch, one scale coarser, where the "object" unit feeds it
+/// patch_size/r-point downsamples of its 256-point patches.
+struct AdaptationPairs {
+    at::Tensor input;   ///< [P, n, 3]
+    at::Tensor target;  ///< [P, n·r, 3] (fewer when X is smaller)
+};
+
+AdaptationPairs cloud_scale_pairs(const Backbone& model, const at::Tensor& cloud,
+                                  const PatchOptions& patch_options, uint64_t seed) {
+    const int64_t r = model.ratio();
+    if (cloud.size(0) / r < 2)
+        throw_input_error("--tta-unit cloud", "{} points are too few to downsample by {}",
+                          cloud.size(0), r);
+    at::Tensor down = model.downsample(cloud.unsqueeze(0), seed).squeeze(0).contiguous();
+    Patches patches = extract_patches(down, patch_options);
+    const int64_t n = patches.points.size(1);
+    const int64_t m = std::min(n * r, cloud.size(0));
+    at::Tensor seeds = down.index_select(0, patches.seeds);
+    at::Tensor target =
+        cloud.index_select(0, knn(cloud, seeds, m).indices.flatten()).view({-1, m, 3});
+    at::Tensor input = down.index_select(0, patches.indices.flatten()).view({-1, n, 3});
+    at::Tensor center = target.mean(1, /*keepdim=*/true);
+    at::Tensor scale = (target - center).norm(2, 2).amax(1).clamp_min(1e-12).view({-1, 1, 1});
+    return {(input - center) / scale, (target - center) / scale};
+}
+
 at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
                          const UpsampleOptions& options, UpsampleResult& result) {
     int64_t r = model.ratio();
@@ -73,25 +103,37 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
     MetaOptions meta = options.meta;
     meta.inner_steps = options.tta_steps;
     auto tta_start = Clock::now();
-    auto adapt_on = [&](const at::Tensor& x, uint64_t seed) {
-        at::Tensor x_down = model.downsample(x, seed);
+    auto adapt_pairs = [&](const at::Tensor& input, const at::Tensor& target) {
         std::vector<double> losses;
-        ParamMap adapted = adapt(model, model.parameters(), x_down, x, meta, options.step_sizes,
+        ParamMap adapted = adapt(model, model.parameters(), input, target, meta, options.step_sizes,
                                  /*create_graph=*/false, &losses);
         return std::make_pair(adapted, losses);
     };
-    if (options.tta_steps > 0 && options.tta_unit == "object") {
-        at::Tensor x = patches.points;
-        if (num_patches > options.tta_max_patches) {
-            at::Tensor pick = random_subset(num_patches, options.tta_max_patches, options.seed);
-            x = x.index_select(0, pick);
+    auto adapt_on = [&](const at::Tensor& x, uint64_t seed) {
+        return adapt_pairs(model.downsample(x, seed), x);
+    };
+    // The one-θ' units adapt on at most tta_max_patches pairs (a seeded subset).
+    auto subset = [&](int64_t rows) {
+        return rows <= options.tta_max_patches
+                   ? at::arange(rows, at::kLong)
+                   : random_subset(rows, options.tta_max_patches, options.seed);
+    };
+    if (options.tta_steps > 0 && (options.tta_unit == "object" || options.tta_unit == "cloud")) {
+        std::pair<ParamMap, std::vector<double>> adapted;
+        if (options.tta_unit == "object") {
+            adapted = adapt_on(patches.points.index_select(0, subset(num_patches)), options.seed);
+        } else {
+            AdaptationPairs pairs = cloud_scale_pairs(model, cloud, patch_options, options.seed);
+            at::Tensor rows = subset(pairs.input.size(0));
+            adapted =
+                adapt_pairs(pairs.input.index_select(0, rows), pairs.target.index_select(0, rows));
         }
-        auto [adapted, losses] = adapt_on(x, options.seed);
-        object_params = std::move(adapted);
-        result.loss_before = losses.front();
-        result.loss_after = losses.back();
+        object_params = std::move(adapted.first);
+        result.loss_before = adapted.second.front();
+        result.loss_after = adapted.second.back();
     } else if (options.tta_steps > 0 && options.tta_unit != "patch") {
-        throw_input_error("--tta-unit", "expected object or patch, found '{}'", options.tta_unit);
+        throw_input_error("--tta-unit", "expected object, patch or cloud, found '{}'",
+                          options.tta_unit);
     }
     result.tta_seconds += seconds_since(tta_start);
 
@@ -167,8 +209,8 @@ at::Tensor midpoint_upsample(const at::Tensor& points, int64_t ratio, int64_t k)
     k = std::min(k, points.size(0) - 1);
     // Neighbour 0 is the point itself.
     at::Tensor neighbours = knn(points, points, k + 1).indices.slice(1, 1);
-    at::Tensor mids = (points.unsqueeze(1) + points.index_select(0, neighbours.flatten())
-                                                 .view({points.size(0), k, 3})) *
+    at::Tensor mids = (points.unsqueeze(1) +
+                       points.index_select(0, neighbours.flatten()).view({points.size(0), k, 3})) *
                       0.5f;
     at::Tensor candidates = at::cat({points, mids.reshape({-1, 3})}).contiguous();
     int64_t target = ratio * points.size(0);

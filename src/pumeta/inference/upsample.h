@@ -26,7 +26,9 @@ struct UpsampleOptions {
     /// Test-time adaptation steps N (0 = plain backbone).
     int64_t tta_steps = 0;
     /// "object": one adaptation on all patches of the input (a batch), θ' used for every
-    /// patch; "patch": each patch adapts on its own.
+    /// patch, each patch's X↓ its own downsample; "patch": each patch adapts on its own;
+    /// "cloud": one θ' from X↓ = the downsampled whole cloud, cut into network-sized patches
+    /// paired with the points of X around them (docs/design.md).
     std::string tta_unit = "object";
     /// Inner-loop settings (step size, which parameters adapt); inner_steps is ignored in
     /// favour of tta_steps.
