@@ -26,6 +26,8 @@ struct Config {
     double lr = 0.5;
     bool augment = true;
     std::vector<std::string> adapt;
+    std::vector<int64_t> ratios = {4};
+    std::vector<double> noise;
     nlohmann::json anything;
     Inner inner;
 };
@@ -38,6 +40,8 @@ void visit_fields(Self& c, Visit&& visit) {
     visit("lr", c.lr);
     visit("augment", c.augment);
     visit("adapt", c.adapt);
+    visit("ratios", c.ratios);
+    visit("noise", c.noise);
     visit("anything", c.anything);
     visit("inner", c.inner);
 }
@@ -78,9 +82,10 @@ TEST(JsonFields, WriteThenReadRoundTripsEveryField) {
     Config c;
     c.name = "b", c.steps = -3, c.seed = 18446744073709551615ull, c.lr = 1e-7;
     c.augment = false, c.adapt = {"head."}, c.anything = {{"k", 1}}, c.inner.count = 4;
+    c.ratios = {8, 16}, c.noise = {0.5, 2};
     const Config& view = c;
     nlohmann::json j = write_fields([&](auto&& visit) { visit_fields(view, visit); });
-    EXPECT_EQ(j.size(), 8u);
+    EXPECT_EQ(j.size(), 10u);
     EXPECT_EQ(j["inner"], nlohmann::json({{"count", 4}}));
     Config back = read(j);
     EXPECT_EQ(back.name, "b");
@@ -91,6 +96,8 @@ TEST(JsonFields, WriteThenReadRoundTripsEveryField) {
     EXPECT_EQ(back.adapt, c.adapt);
     EXPECT_EQ(back.anything, c.anything);
     EXPECT_EQ(back.inner.count, 4);
+    EXPECT_EQ(back.ratios, (std::vector<int64_t>{8, 16}));
+    EXPECT_EQ(back.noise, (std::vector<double>{0.5, 2.0}));
 }
 
 TEST(JsonFields, UnknownFieldsAndWrongTypesAreInputErrorsNamingTheField) {
@@ -105,6 +112,10 @@ TEST(JsonFields, UnknownFieldsAndWrongTypesAreInputErrorsNamingTheField) {
     EXPECT_EQ(error_of({{"name", 3}}), "test config: 'name' must be a string, found 3");
     EXPECT_EQ(error_of({{"adapt", {"up.", 2}}}),
               "test config: 'adapt' must be a list of strings, found [\"up.\",2]");
+    EXPECT_EQ(error_of({{"ratios", {4, 8.5}}}),
+              "test config: 'ratios' must be a list of integers, found [4,8.5]");
+    EXPECT_EQ(error_of({{"noise", 0.5}}),
+              "test config: 'noise' must be a list of numbers, found 0.5");
     EXPECT_EQ(error_of({{"inner", 5}}), "inner: expected an object");
     EXPECT_EQ(error_of(nlohmann::json::array({1})),
               "test config: expected a JSON object, found [1]");

@@ -37,37 +37,72 @@ struct IsConfig<T, std::void_t<decltype(T::from_json(std::declval<const nlohmann
                                decltype(std::declval<const T&>().to_json())>> : std::true_type {};
 
 template <class T>
+struct IsVector : std::false_type {};
+template <class T>
+struct IsVector<std::vector<T>> : std::true_type {};
+
+/// Whether `value` can be read as a T, and how the error names T.
+template <class T>
+bool has_type(const nlohmann::json& value) {
+    if constexpr (std::is_same_v<T, bool>)
+        return value.is_boolean();
+    else if constexpr (std::is_same_v<T, uint64_t>)
+        return value.is_number_unsigned() ||
+               (value.is_number_integer() && value.get<int64_t>() >= 0);
+    else if constexpr (std::is_integral_v<T>)
+        return value.is_number_integer();
+    else if constexpr (std::is_floating_point_v<T>)
+        return value.is_number();
+    else
+        return value.is_string();
+}
+
+template <class T>
+const char* type_name() {
+    if constexpr (std::is_same_v<T, bool>)
+        return "true or false";
+    else if constexpr (std::is_same_v<T, uint64_t>)
+        return "a non-negative integer";
+    else if constexpr (std::is_integral_v<T>)
+        return "an integer";
+    else if constexpr (std::is_floating_point_v<T>)
+        return "a number";
+    else
+        return "a string";
+}
+
+template <class T>
+const char* list_name() {
+    if constexpr (std::is_integral_v<T>)
+        return "a list of integers";
+    else if constexpr (std::is_floating_point_v<T>)
+        return "a list of numbers";
+    else
+        return "a list of strings";
+}
+
+template <class T>
 void read_value(const nlohmann::json& value, const std::string& key, const std::string& context,
                 T& member) {
-    auto wrong = [&](const char* expected) {
-        throw_input_error(context, "'{}' must be {}, found {}", key, expected, value.dump());
-    };
-    if constexpr (std::is_same_v<T, bool>) {
-        if (!value.is_boolean()) wrong("true or false");
-        member = value.get<bool>();
-    } else if constexpr (std::is_same_v<T, uint64_t>) {
-        if (!value.is_number_integer() || (!value.is_number_unsigned() && value.get<int64_t>() < 0))
-            wrong("a non-negative integer");
-        member = value.get<uint64_t>();
-    } else if constexpr (std::is_integral_v<T>) {
-        if (!value.is_number_integer()) wrong("an integer");
-        member = value.get<T>();
-    } else if constexpr (std::is_floating_point_v<T>) {
-        if (!value.is_number()) wrong("a number");
-        member = value.get<T>();
-    } else if constexpr (std::is_same_v<T, std::string>) {
-        if (!value.is_string()) wrong("a string");
-        member = value.get<std::string>();
-    } else if constexpr (std::is_same_v<T, std::vector<std::string>>) {
-        if (!value.is_array()) wrong("a list of strings");
-        for (const nlohmann::json& item : value)
-            if (!item.is_string()) wrong("a list of strings");
-        member = value.get<std::vector<std::string>>();
-    } else if constexpr (std::is_same_v<T, nlohmann::json>) {
+    if constexpr (std::is_same_v<T, nlohmann::json>) {
         member = value;
-    } else {
-        static_assert(IsConfig<T>::value, "a config field needs a supported type");
+    } else if constexpr (IsConfig<T>::value) {
         member = T::from_json(value);
+    } else if constexpr (IsVector<T>::value) {
+        using Item = typename T::value_type;
+        bool ok = value.is_array();
+        for (size_t i = 0; ok && i < value.size(); ++i) ok = has_type<Item>(value[i]);
+        if (!ok)
+            throw_input_error(context, "'{}' must be {}, found {}", key, list_name<Item>(),
+                              value.dump());
+        member = value.get<T>();
+    } else {
+        static_assert(std::is_arithmetic_v<T> || std::is_same_v<T, std::string>,
+                      "a config field needs a supported type");
+        if (!has_type<T>(value))
+            throw_input_error(context, "'{}' must be {}, found {}", key, type_name<T>(),
+                              value.dump());
+        member = value.get<T>();
     }
 }
 

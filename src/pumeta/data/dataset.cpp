@@ -14,6 +14,7 @@
 
 #include "pumeta/core/error.h"
 #include "pumeta/core/hash.h"
+#include "pumeta/core/json_fields.h"
 #include "pumeta/core/progress.h"
 #include "pumeta/core/sha256.h"
 #include "pumeta/data/patch_set.h"
@@ -29,42 +30,31 @@ namespace pumeta {
 
 namespace fs = std::filesystem;
 
+namespace {
+
+template <class Self, class Visit>
+void visit_fields(Self& c, Visit&& visit) {
+    visit("raw_dir", c.raw_dir);
+    visit("ratios", c.ratios);
+    visit("input_points", c.input_points);
+    visit("patch_points", c.patch_points);
+    visit("patches_per_mesh", c.patches_per_mesh);
+    visit("generated_shapes", c.generated_shapes);
+    visit("generator_seed", c.generator_seed);
+    visit("test_fraction", c.test_fraction);
+    visit("val_fraction", c.val_fraction);
+    visit("seed", c.seed);
+    visit("relative_noise", c.relative_noise);
+    visit("absolute_noise", c.absolute_noise);
+    visit("max_models_per_split", c.max_models_per_split);
+    visit("splits", c.splits);
+}
+
+}  // namespace
+
 DatasetConfig DatasetConfig::from_json(const nlohmann::json& j) {
     DatasetConfig c;
-    for (const auto& [key, value] : j.items()) {
-        if (key == "raw_dir")
-            c.raw_dir = value;
-        else if (key == "ratios")
-            c.ratios = value.get<std::vector<int64_t>>();
-        else if (key == "input_points")
-            c.input_points = value;
-        else if (key == "patch_points")
-            c.patch_points = value;
-        else if (key == "patches_per_mesh")
-            c.patches_per_mesh = value;
-        else if (key == "generated_shapes")
-            c.generated_shapes = value;
-        else if (key == "generator_seed")
-            c.generator_seed = value;
-        else if (key == "test_fraction")
-            c.test_fraction = value;
-        else if (key == "val_fraction")
-            c.val_fraction = value;
-        else if (key == "seed")
-            c.seed = value;
-        else if (key == "relative_noise")
-            c.relative_noise = value.get<std::vector<double>>();
-        else if (key == "absolute_noise")
-            c.absolute_noise = value.get<std::vector<double>>();
-        else if (key == "max_models_per_split")
-            c.max_models_per_split = value;
-        else if (key == "splits")
-            c.splits = value.get<std::vector<std::string>>();
-        else if (key == "comment")
-            continue;
-        else
-            throw_input_error("dataset config", "unknown field '{}'", key);
-    }
+    read_fields(j, "dataset config", [&](auto&& visit) { visit_fields(c, visit); });
     for (int64_t r : c.ratios)
         if (r < 2) throw_input_error("dataset config", "ratio {} must be at least 2", r);
     if (c.input_points < c.patch_points)
@@ -74,20 +64,7 @@ DatasetConfig DatasetConfig::from_json(const nlohmann::json& j) {
 }
 
 nlohmann::json DatasetConfig::to_json() const {
-    return {{"raw_dir", raw_dir},
-            {"ratios", ratios},
-            {"input_points", input_points},
-            {"patch_points", patch_points},
-            {"patches_per_mesh", patches_per_mesh},
-            {"generated_shapes", generated_shapes},
-            {"generator_seed", generator_seed},
-            {"test_fraction", test_fraction},
-            {"val_fraction", val_fraction},
-            {"seed", seed},
-            {"relative_noise", relative_noise},
-            {"absolute_noise", absolute_noise},
-            {"max_models_per_split", max_models_per_split},
-            {"splits", splits}};
+    return write_fields([&](auto&& visit) { visit_fields(*this, visit); });
 }
 
 namespace {
