@@ -429,8 +429,8 @@ ReproduceConfig ReproduceConfig::from_json(nlohmann::json j, const std::string& 
     }
     if (c.main_ratio < 2) throw_input_error(kContext, "'main_ratio' must be at least 2");
     if (c.tta_steps < 1) throw_input_error(kContext, "'tta_steps' must be positive");
-    if (c.tta_unit != "object" && c.tta_unit != "patch")
-        throw_input_error(kContext, "'tta_unit' must be \"object\" or \"patch\"");
+    if (c.tta_unit != "object" && c.tta_unit != "patch" && c.tta_unit != "cloud")
+        throw_input_error(kContext, "'tta_unit' must be \"object\", \"patch\" or \"cloud\"");
     if (c.sets.empty()) throw_input_error(kContext, "'sets' is empty");
     return c;
 }
