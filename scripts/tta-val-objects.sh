@@ -5,6 +5,8 @@
 # objects that improved. Validation data only; never the test sets.
 #   scripts/tta-val-objects.sh MODEL UNIT STEPS α...
 #   scripts/tta-val-objects.sh models/pugcn-x4.pt cloud 5 0.01 0.1 0.3
+#   scripts/tta-val-objects.sh models/pugcn-x4-meta.pt object 5 learned   # Meta-SGD sizes
+# "plain" is the same model without adaptation (for a meta-trained model: its own weights).
 # MAX_CASES=N limits the objects (default: all 40); THREADS (default 1).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -26,7 +28,9 @@ run() {  # name, extra eval args...
 run plain --tta-steps 0
 printf '%-8s %-8s %-12s %-12s %-22s %s\n' unit alpha "CD" change "inner loss" "objects better"
 for alpha in "$@"; do
-    run "a$alpha" --tta-steps "$steps" --tta-lr "$alpha" --tta-unit "$unit"
+    lr=(--tta-lr "$alpha")
+    [ "$alpha" = learned ] && lr=()
+    run "a$alpha" --tta-steps "$steps" "${lr[@]}" --tta-unit "$unit"
     python3 - "$unit" "$alpha" "$work/plain/cases.csv" "$work/a$alpha" <<'PY'
 import csv, json, sys
 unit, alpha, plain_csv, adapted = sys.argv[1:5]
