@@ -134,6 +134,21 @@ TEST_F(ReproduceTest, ASecondRunReusesUnchangedEvaluationsAndRedoesChangedModels
     fs::copy_file(saved, models / "pugcn-x4-meta.pt", fs::copy_options::overwrite_existing);
     EXPECT_EQ(fs::last_write_time(plain_csv), plain_time);
     EXPECT_NE(fs::last_write_time(meta_csv), meta_time);
+
+    // New weights for the plain model: its cells run again, but the zero-shot baseline, which
+    // only takes the architecture from it and trains from scratch, is reused.
+    fs::path zero_shot_csv;
+    for (const auto& entry : fs::directory_iterator(out / "runs/test-indist-x4"))
+        if (entry.path().filename().string().rfind("zero-shot-", 0) == 0)
+            zero_shot_csv = entry.path() / "cases.csv";
+    ASSERT_TRUE(fs::exists(zero_shot_csv));
+    auto zero_shot_time = fs::last_write_time(zero_shot_csv);
+    fs::copy_file(models / "pugcn-x4.pt", saved, fs::copy_options::overwrite_existing);
+    test::save_tiny_model((models / "pugcn-x4.pt").string(), 5);
+    reproduce(config(), out.string(), "test");
+    fs::copy_file(saved, models / "pugcn-x4.pt", fs::copy_options::overwrite_existing);
+    EXPECT_NE(fs::last_write_time(plain_csv), plain_time);
+    EXPECT_EQ(fs::last_write_time(zero_shot_csv), zero_shot_time);
 }
 
 TEST(ReproduceConfig, BudgetsOverrideFieldsAndMistakesAreInputErrors) {

@@ -149,6 +149,10 @@ void save_tiny_meta_model(const std::string& path, uint64_t seed) {
     save_checkpoint(path, *tiny_pugcn(seed), {{"meta", meta.to_json()}});
 }
 
+void save_tiny_model(const std::string& path, uint64_t seed) {
+    save_checkpoint(path, *tiny_pugcn(seed));
+}
+
 nlohmann::json make_tiny_reproduction(const fs::path& dir) {
     make_raw_tree(dir / "raw");
     DatasetConfig data;
@@ -164,7 +168,7 @@ nlohmann::json make_tiny_reproduction(const fs::path& dir) {
     data.absolute_noise = {};
     make_dataset(data, (dir / "data").string());
     fs::create_directories(dir / "models");
-    save_checkpoint((dir / "models" / "pugcn-x4.pt").string(), *tiny_pugcn(1));
+    save_tiny_model((dir / "models" / "pugcn-x4.pt").string(), 1);
     save_tiny_meta_model((dir / "models" / "pugcn-x4-meta.pt").string(), 2);
     return {{"dataset_dir", (dir / "data").string()},
             {"models_dir", (dir / "models").string()},

@@ -75,4 +75,7 @@ nlohmann::json make_tiny_reproduction(const std::filesystem::path& dir);
 /// Overwrites `path` with another tiny meta-trained PU-GCN (weights from `seed`).
 void save_tiny_meta_model(const std::string& path, uint64_t seed);
 
+/// Overwrites `path` with another tiny plain PU-GCN (weights from `seed`).
+void save_tiny_model(const std::string& path, uint64_t seed);
+
 }  // namespace pumeta::test

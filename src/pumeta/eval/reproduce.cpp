@@ -164,12 +164,16 @@ class Runner {
                                    {"seed", config_.seed},
                                    {"max_cases", max_cases},
                                    {"figure_cases", config_.figure_cases}};
-        if (spec.method == "network" || spec.method == "zero-shot")
-            identity["model_sha256"] = sha256_file(spec.model);
-        if (spec.method == "zero-shot")
+        if (spec.method == "network") identity["model_sha256"] = sha256_file(spec.model);
+        // A zero-shot model starts fresh: only the architecture matters, not the weights.
+        if (spec.method == "zero-shot") {
+            nlohmann::json architecture = load_inference_model(spec.model).backbone->config();
+            architecture.erase("seed");  // train_zero_shot sets its own
+            identity["architecture"] = architecture;
             identity["zero_shot"] = {{"steps", spec.zero_shot.steps},
                                      {"batch_patches", spec.zero_shot.batch_patches},
                                      {"lr", spec.zero_shot.lr}};
+        }
         if (spec.method == "external") identity["command"] = spec.command;
         fs::path spec_file = dir / "spec.json";
         bool reusable = fs::exists(dir / "cases.csv") && fs::exists(dir / "summary.json") &&
