@@ -10,6 +10,8 @@ packages=(
     libopenblas0-openmp
     libnanoflann-dev libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev libeigen3-dev
     libstb-dev libgtest-dev libbenchmark-dev
+    # The "format" test checks every source against .clang-format.
+    clang-format
     # scripts/bench.sh turns benchmark JSON into ratio tables.
     python3
     # Malformed and odd model files for the parser tests.

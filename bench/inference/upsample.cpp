@@ -3,6 +3,8 @@
 // the meta-trained model when models/pugcn-x4-meta.pt exists), and the midpoint baseline.
 // The argument is the thread count. Counters: patches/s (plain) and the adaptation cost in
 // units of the plain time measured in the same run (scripts/bench-upsample.sh prints both).
+#include "pumeta/inference/upsample.h"
+
 #include <ATen/ATen.h>
 #include <ATen/Parallel.h>
 #include <benchmark/benchmark.h>
@@ -12,7 +14,6 @@
 #include "pumeta/data/shapes.h"
 #include "pumeta/geometry/sampling.h"
 #include "pumeta/inference/model_file.h"
-#include "pumeta/inference/upsample.h"
 
 namespace {
 
@@ -56,13 +57,26 @@ void BM_Upsample(benchmark::State& state, int64_t tta_steps) {
     state.counters["patches_per_s"] =
         benchmark::Counter(static_cast<double>(patches), benchmark::Counter::kIsRate);
 }
-BENCHMARK_CAPTURE(BM_Upsample, plain, 0)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(BM_Upsample, tta1, 1)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
-BENCHMARK_CAPTURE(BM_Upsample, tta5, 5)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK_CAPTURE(BM_Upsample, plain, 0)
+    ->Arg(1)
+    ->Arg(2)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(BM_Upsample, tta1, 1)
+    ->Arg(1)
+    ->Arg(2)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+BENCHMARK_CAPTURE(BM_Upsample, tta5, 5)
+    ->Arg(1)
+    ->Arg(2)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 void BM_Midpoint(benchmark::State& state) {
     at::set_num_threads(static_cast<int>(state.range(0)));
-    for (auto _ : state) benchmark::DoNotOptimize(midpoint_upsample(input_cloud(), 4).data_ptr<float>());
+    for (auto _ : state)
+        benchmark::DoNotOptimize(midpoint_upsample(input_cloud(), 4).data_ptr<float>());
 }
 BENCHMARK(BM_Midpoint)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 

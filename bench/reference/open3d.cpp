@@ -3,11 +3,12 @@
 // Poisson-disk points on a UV sphere of 49,600 triangles). Built only when Open3D is installed;
 // scripts/bench-foundation.sh turns both into ratios.
 #include <benchmark/benchmark.h>
+#include <omp.h>
 #include <open3d/geometry/KDTreeFlann.h>
 #include <open3d/geometry/PointCloud.h>
 #include <open3d/geometry/TriangleMesh.h>
 #include <open3d/utility/Random.h>
-#include <omp.h>
+
 #include <cmath>
 #include <random>
 
@@ -31,7 +32,9 @@ std::shared_ptr<geometry::TriangleMesh> uv_sphere(int64_t rings, int64_t sectors
     for (int64_t r = 1; r < rings; ++r)
         for (int64_t s = 0; s < sectors; ++s) {
             const double theta = pi * r / rings, phi = 2 * pi * s / sectors;
-            m->vertices_.emplace_back(float(std::sin(theta) * std::cos(phi)), float(std::sin(theta) * std::sin(phi)), float(std::cos(theta)));
+            m->vertices_.emplace_back(float(std::sin(theta) * std::cos(phi)),
+                                      float(std::sin(theta) * std::sin(phi)),
+                                      float(std::cos(theta)));
         }
     m->vertices_.emplace_back(0, 0, -1);
     const int south = int(m->vertices_.size()) - 1;
@@ -48,13 +51,20 @@ std::shared_ptr<geometry::TriangleMesh> uv_sphere(int64_t rings, int64_t sectors
     return m;
 }
 
-const auto& cloud100k() { static auto pc = random_cloud(100000, 1); return pc; }
-const auto& sphere() { static auto m = uv_sphere(125, 200); return m; }
+const auto& cloud100k() {
+    static auto pc = random_cloud(100000, 1);
+    return pc;
+}
+const auto& sphere() {
+    static auto m = uv_sphere(125, 200);
+    return m;
+}
 
 void query_all(const geometry::KDTreeFlann& tree, const geometry::PointCloud& pc, int threads) {
 #pragma omp parallel for num_threads(threads) schedule(static)
     for (int64_t i = 0; i < int64_t(pc.points_.size()); ++i) {
-        std::vector<int> idx; std::vector<double> d2;
+        std::vector<int> idx;
+        std::vector<double> d2;
         tree.SearchKNN(pc.points_[i], 16, idx, d2);
         benchmark::DoNotOptimize(idx.data());
     }
@@ -88,8 +98,12 @@ BENCHMARK(BM_O3D_SamplePointsUniformly)->Unit(benchmark::kMillisecond)->UseRealT
 
 void BM_O3D_SamplePointsPoissonDisk(benchmark::State& state) {
     sphere();
-    for (auto _ : state) benchmark::DoNotOptimize(sphere()->SamplePointsPoissonDisk(100000, 5, nullptr, true));
+    for (auto _ : state)
+        benchmark::DoNotOptimize(sphere()->SamplePointsPoissonDisk(100000, 5, nullptr, true));
 }
-BENCHMARK(BM_O3D_SamplePointsPoissonDisk)->Unit(benchmark::kMillisecond)->UseRealTime()->Iterations(1);
+BENCHMARK(BM_O3D_SamplePointsPoissonDisk)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime()
+    ->Iterations(1);
 
 BENCHMARK_MAIN();

@@ -43,8 +43,8 @@ TEST(Cli, BadInputsGiveExitTwoAndNoOutputFile) {
         EXPECT_FALSE(fs::exists(out)) << name;
     }
     // Dropping invalid points on request works and says how many.
-    auto r = test::run_cli({"convert", dir.file("nan.xyz"), "-o", dir.file("ok.ply"),
-                            "--drop-invalid"});
+    auto r =
+        test::run_cli({"convert", dir.file("nan.xyz"), "-o", dir.file("ok.ply"), "--drop-invalid"});
     EXPECT_EQ(r.exit_code, 0) << r.err;
     EXPECT_EQ(read_point_cloud(dir.file("ok.ply")).size(), 2);
 }
@@ -76,21 +76,21 @@ TEST(Cli, InfoJsonAndSample) {
     auto j = nlohmann::json::parse(info.out);
     EXPECT_EQ(j["points"], 8);
     EXPECT_EQ(j["faces"], 12);
-    auto sample = test::run_cli({"sample", dir.file("cube.off"), "-n", "500", "--seed", "3",
-                                 "-o", dir.file("s.ply")});
+    auto sample = test::run_cli(
+        {"sample", dir.file("cube.off"), "-n", "500", "--seed", "3", "-o", dir.file("s.ply")});
     ASSERT_EQ(sample.exit_code, 0) << sample.err;
     EXPECT_EQ(read_point_cloud(dir.file("s.ply")).size(), 500);
     // More points than a tiny cloud has is a clear error, not a crash.
-    auto too_many = test::run_cli({"sample", dir.file("cube.off"), "-n", "0", "-o",
-                                   dir.file("t.ply")});
+    auto too_many =
+        test::run_cli({"sample", dir.file("cube.off"), "-n", "0", "-o", dir.file("t.ply")});
     EXPECT_EQ(too_many.exit_code, 2);
 }
 
 TEST(Cli, UnknownDeviceIsAnInputError) {
     test::TempDir dir;
     write_point_cloud(dir.file("in.ply"), {test::random_points(50, 1)});
-    auto r = test::run_cli({"upsample", dir.file("in.ply"), "-o", dir.file("out.ply"),
-                            "--device", "tpu"});
+    auto r = test::run_cli(
+        {"upsample", dir.file("in.ply"), "-o", dir.file("out.ply"), "--device", "tpu"});
     EXPECT_EQ(r.exit_code, 2) << r.err;
     EXPECT_FALSE(fs::exists(dir.file("out.ply")));
 }

@@ -11,9 +11,14 @@ namespace pumeta {
 namespace {
 
 std::unique_ptr<Backbone> small_pugcn(int64_t ratio) {
-    return make_backbone({{"backbone", "pugcn"}, {"ratio", ratio}, {"channels", 8},
-                          {"k", 8}, {"upsample_channels", 8}, {"reconstruction_channels", 8},
-                          {"patch_size", 64}, {"seed", 1}});
+    return make_backbone({{"backbone", "pugcn"},
+                          {"ratio", ratio},
+                          {"channels", 8},
+                          {"k", 8},
+                          {"upsample_channels", 8},
+                          {"reconstruction_channels", 8},
+                          {"patch_size", 64},
+                          {"seed", 1}});
 }
 
 /// Points on the unit sphere (a surface, so patches are meaningful).

@@ -15,11 +15,16 @@ namespace pumeta {
 namespace {
 
 std::unique_ptr<Backbone> tiny_model(bool double_precision) {
-    nlohmann::json config = {{"backbone", "pugcn"},      {"ratio", 2},
-                             {"channels", 4},            {"k", 4},
-                             {"dilation", 2},            {"upsample_channels", 4},
-                             {"reconstruction_channels", 4}, {"patch_size", 16},
-                             {"downsampler", "random"},  {"seed", 3}};
+    nlohmann::json config = {{"backbone", "pugcn"},
+                             {"ratio", 2},
+                             {"channels", 4},
+                             {"k", 4},
+                             {"dilation", 2},
+                             {"upsample_channels", 4},
+                             {"reconstruction_channels", 4},
+                             {"patch_size", 16},
+                             {"downsampler", "random"},
+                             {"seed", 3}};
     auto model = make_backbone(config);
     if (double_precision) {
         // Moved to a generic point: at initialisation the biases are zero, so dead (zero)
@@ -120,10 +125,10 @@ TEST(Maml, FirstOrderEqualsGradientAtAdaptedWeightsAndDiffersFromSecondOrder) {
     double max_rel_first = 0, max_diff_second = 0;
     for (auto& [name, g] : oracle) {
         double scale = g.abs().max().item<double>() + 1e-12;
-        max_rel_first = std::max(
-            max_rel_first, (first.grads.at(name) - g).abs().max().item<double>() / scale);
-        max_diff_second = std::max(
-            max_diff_second, (second.grads.at(name) - g).abs().max().item<double>() / scale);
+        max_rel_first =
+            std::max(max_rel_first, (first.grads.at(name) - g).abs().max().item<double>() / scale);
+        max_diff_second = std::max(max_diff_second,
+                                   (second.grads.at(name) - g).abs().max().item<double>() / scale);
     }
     EXPECT_LT(max_rel_first, 1e-9);
     EXPECT_GT(max_diff_second, 1e-3) << "second-order gradient should differ from FOMAML";
@@ -136,8 +141,8 @@ TEST(Maml, ZeroInnerStepSizeReducesToSupervisedGradient) {
     options.inner_steps = 3;
     options.inner_lr = 0.0;
     MetaStepResult result = meta_gradient(*model, tasks.x, tasks.y, options, {}, 1);
-    ParamMap supervised = gradients(model->loss(tasks.x, tasks.y, model->parameters()),
-                                    model->parameters());
+    ParamMap supervised =
+        gradients(model->loss(tasks.x, tasks.y, model->parameters()), model->parameters());
     for (auto& [name, g] : supervised) {
         double scale = g.abs().max().item<double>() + 1e-12;
         EXPECT_LT((result.grads.at(name) - g).abs().max().item<double>() / scale, 1e-9) << name;
@@ -198,7 +203,8 @@ TEST(Maml, MetaSgdStepSizesReceiveGradients) {
         StepSizes shifted;
         for (auto& [name, a] : sizes) shifted[name] = a.detach() + (name == layer ? delta : 0.0);
         at::Tensor x_down = model->downsample(tasks.x, 4);
-        ParamMap fast = adapt(*model, model->parameters(), x_down, tasks.x, options, shifted, false);
+        ParamMap fast =
+            adapt(*model, model->parameters(), x_down, tasks.x, options, shifted, false);
         return model->loss(tasks.x, tasks.y, fast).item<double>();
     };
     double numeric = (objective(1e-6) - objective(-1e-6)) / 2e-6;

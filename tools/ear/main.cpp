@@ -58,8 +58,8 @@ int main(int argc, char** argv) {
         points.push_back({Point(x, y, z), Vector(0, 0, 0)});
     }
     if (points.size() < 20)
-        return fail(2, input + ": " + std::to_string(points.size()) +
-                           " points; EAR needs at least 20");
+        return fail(
+            2, input + ": " + std::to_string(points.size()) + " points; EAR needs at least 20");
 
     try {
         auto point_map = CGAL::First_of_pair_property_map<PointWithNormal>();

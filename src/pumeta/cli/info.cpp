@@ -103,13 +103,17 @@ void print_text(const nlohmann::json& info) {
 void add_info_command(CLI::App& app) {
     auto args = std::make_shared<InfoArgs>();
     CLI::App* command = app.add_subcommand("info", "counts, bounds and properties of a file");
-    command->add_option("file", args->path, "point cloud, mesh, model (.pt) or patch set (.tensors) file")->required();
+    command
+        ->add_option("file", args->path,
+                     "point cloud, mesh, model (.pt) or patch set (.tensors) file")
+        ->required();
     command->add_flag("--json", args->json, "one JSON object on stdout");
     add_read_options(*command, args->read);
     command->callback([args] {
-        nlohmann::json info = is_model_file(args->path)       ? model_info(args->path)
-                              : is_patch_set_file(args->path) ? patch_set_info(args->path)
-                                                              : geometry_info(args->path, args->read);
+        nlohmann::json info = is_model_file(args->path) ? model_info(args->path)
+                              : is_patch_set_file(args->path)
+                                  ? patch_set_info(args->path)
+                                  : geometry_info(args->path, args->read);
         if (args->json)
             print_json(info);
         else

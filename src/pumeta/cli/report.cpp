@@ -1,7 +1,8 @@
+#include "pumeta/eval/report.h"
+
 #include <spdlog/spdlog.h>
 
 #include "pumeta/cli/commands.h"
-#include "pumeta/eval/report.h"
 
 namespace pumeta::cli {
 

@@ -1,8 +1,9 @@
+#include "pumeta/eval/reproduce.h"
+
 #include <filesystem>
 
 #include "pumeta/cli/commands.h"
 #include "pumeta/cli/config_file.h"
-#include "pumeta/eval/reproduce.h"
 
 namespace pumeta::cli {
 

@@ -83,9 +83,12 @@ InputSampler parse_input_sampler(const std::string& name) {
 
 std::string to_string(InputSampler sampler) {
     switch (sampler) {
-        case InputSampler::kFps: return "fps";
-        case InputSampler::kRandom: return "random";
-        case InputSampler::kNonuniform: return "nonuniform";
+        case InputSampler::kFps:
+            return "fps";
+        case InputSampler::kRandom:
+            return "random";
+        case InputSampler::kNonuniform:
+            return "nonuniform";
     }
     return "?";
 }
@@ -184,9 +187,7 @@ PatchLoader::PatchLoader(const PatchSet& set, LoaderOptions options)
     start_epoch(0);
 }
 
-int64_t PatchLoader::batches_per_epoch() const {
-    return set_.num_patches() / options_.batch_size;
-}
+int64_t PatchLoader::batches_per_epoch() const { return set_.num_patches() / options_.batch_size; }
 
 void PatchLoader::start_epoch(int64_t epoch) {
     order_.resize(set_.num_patches());

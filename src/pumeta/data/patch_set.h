@@ -4,9 +4,9 @@
 #pragma once
 
 #include <ATen/core/Tensor.h>
-#include <nlohmann/json.hpp>
 
 #include <cstdint>
+#include <nlohmann/json.hpp>
 #include <random>
 #include <string>
 #include <vector>
@@ -15,10 +15,10 @@ namespace pumeta {
 
 struct PatchSet {
     int64_t ratio = 4;
-    int64_t patch_points = 256;  ///< input points per patch; GT patches have patch_points·ratio
-    at::Tensor points;           ///< float32 [P,3], all meshes' clouds concatenated
-    at::Tensor offsets;          ///< int64 [M+1]: mesh m owns points[offsets[m]:offsets[m+1]]
-    at::Tensor seeds;            ///< int64 [S,2]: (mesh, point index within the mesh) per patch
+    int64_t patch_points = 256;    ///< input points per patch; GT patches have patch_points·ratio
+    at::Tensor points;             ///< float32 [P,3], all meshes' clouds concatenated
+    at::Tensor offsets;            ///< int64 [M+1]: mesh m owns points[offsets[m]:offsets[m+1]]
+    at::Tensor seeds;              ///< int64 [S,2]: (mesh, point index within the mesh) per patch
     std::vector<std::string> ids;  ///< mesh ids, [M]
 
     int64_t num_meshes() const { return offsets.defined() ? offsets.size(0) - 1 : 0; }

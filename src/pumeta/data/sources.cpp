@@ -52,8 +52,7 @@ std::map<int, std::map<std::string, std::string>> parse_catalogue(const fs::path
             eq == std::string::npos || hash > eq)
             continue;
         std::string index = line.substr(hash + 1, eq - hash - 1);
-        if (index.empty() || index.find_first_not_of("0123456789") != std::string::npos)
-            continue;
+        if (index.empty() || index.find_first_not_of("0123456789") != std::string::npos) continue;
         entries[std::stoi(index)][line.substr(0, hash)] = latin1_to_utf8(line.substr(eq + 1));
     }
     return entries;
@@ -73,7 +72,8 @@ std::vector<SourceModel> list_furniture(const std::string& raw_dir) {
     std::vector<SourceModel> models;
     for (const fs::path& dir : catalogues) {
         std::string catalogue = dir.filename().string();
-        for (const auto& [index, fields] : parse_catalogue(dir / "PluginFurnitureCatalog.properties")) {
+        for (const auto& [index, fields] :
+             parse_catalogue(dir / "PluginFurnitureCatalog.properties")) {
             auto model_it = fields.find("model");
             if (model_it == fields.end()) continue;
             std::string model = model_it->second;
@@ -102,9 +102,10 @@ std::vector<SourceModel> list_furniture(const std::string& raw_dir) {
     // A model file referenced twice (same id) is kept once.
     std::sort(models.begin(), models.end(),
               [](const SourceModel& a, const SourceModel& b) { return a.id < b.id; });
-    models.erase(std::unique(models.begin(), models.end(),
-                             [](const SourceModel& a, const SourceModel& b) { return a.id == b.id; }),
-                 models.end());
+    models.erase(
+        std::unique(models.begin(), models.end(),
+                    [](const SourceModel& a, const SourceModel& b) { return a.id == b.id; }),
+        models.end());
     return models;
 }
 

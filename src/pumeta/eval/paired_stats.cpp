@@ -8,9 +8,8 @@
 
 namespace pumeta {
 
-PairedComparison compare_paired(const std::vector<double>& base,
-                                const std::vector<double>& method, bool higher_is_better,
-                                int64_t resamples, uint64_t seed) {
+PairedComparison compare_paired(const std::vector<double>& base, const std::vector<double>& method,
+                                bool higher_is_better, int64_t resamples, uint64_t seed) {
     if (base.size() != method.size())
         throw_input_error("compare_paired", "{} base scores but {} method scores", base.size(),
                           method.size());

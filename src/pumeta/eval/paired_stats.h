@@ -21,8 +21,8 @@ struct PairedComparison {
 
 /// base[i] and method[i] are the same case's scores; pairs with a non-finite value are
 /// dropped. Same inputs and seed, same interval. Throws InputError on length mismatch.
-PairedComparison compare_paired(const std::vector<double>& base,
-                                const std::vector<double>& method, bool higher_is_better = false,
-                                int64_t resamples = 2000, uint64_t seed = 1);
+PairedComparison compare_paired(const std::vector<double>& base, const std::vector<double>& method,
+                                bool higher_is_better = false, int64_t resamples = 2000,
+                                uint64_t seed = 1);
 
 }  // namespace pumeta

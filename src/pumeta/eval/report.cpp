@@ -1,7 +1,6 @@
 #include "pumeta/eval/report.h"
 
 #include <ATen/ATen.h>
-#include <nlohmann/json.hpp>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -9,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <nlohmann/json.hpp>
 #include <sstream>
 
 #include "pumeta/core/error.h"
@@ -27,11 +27,20 @@ std::string escape_html(const std::string& text) {
     std::string out;
     for (char c : text) {
         switch (c) {
-            case '&': out += "&amp;"; break;
-            case '<': out += "&lt;"; break;
-            case '>': out += "&gt;"; break;
-            case '"': out += "&quot;"; break;
-            default: out += c;
+            case '&':
+                out += "&amp;";
+                break;
+            case '<':
+                out += "&lt;";
+                break;
+            case '>':
+                out += "&gt;";
+                break;
+            case '"':
+                out += "&quot;";
+                break;
+            default:
+                out += c;
         }
     }
     return out;
@@ -184,7 +193,8 @@ ReportSummary write_report(const std::string& results_dir, const std::string& ou
     fs::path results(results_dir), out(out_dir);
     fs::path tables_file = results / "tables.json";
     if (!fs::exists(tables_file))
-        throw_input_error(results_dir, "no tables.json: not an output directory of pumeta reproduce");
+        throw_input_error(results_dir,
+                          "no tables.json: not an output directory of pumeta reproduce");
     nlohmann::json tables = nlohmann::json::parse(std::ifstream(tables_file), nullptr, false);
     if (tables.is_discarded() || !tables.contains("markdown") || !tables.contains("config"))
         throw_input_error(tables_file.string(), "not a tables.json of pumeta reproduce");
@@ -204,8 +214,9 @@ ReportSummary write_report(const std::string& results_dir, const std::string& ou
     for (const std::string& set : config.at("sets").get<std::vector<std::string>>()) {
         std::vector<Method> methods = table1_methods(tables, results, set);
         if (methods.empty()) continue;
-        fs::path cases_dir = fs::path(tables.value("dataset_path", config.at("dataset_dir").get<std::string>())) / "cases" / set /
-                             ("x" + std::to_string(ratio));
+        fs::path cases_dir =
+            fs::path(tables.value("dataset_path", config.at("dataset_dir").get<std::string>())) /
+            "cases" / set / ("x" + std::to_string(ratio));
         for (const std::string& name : first_cases(methods.front().run / "cases.csv", per_set)) {
             fs::path gt_file = cases_dir / name / "gt.ply";
             if (!fs::exists(gt_file)) {
@@ -262,14 +273,16 @@ ReportSummary write_report(const std::string& results_dir, const std::string& ou
                      << "\"></figure>\n";
         ++summary.plots;
     };
-    if (tables.contains("table5") && !tables["table5"].value("rows", nlohmann::json::array()).empty()) {
+    if (tables.contains("table5") &&
+        !tables["table5"].value("rows", nlohmann::json::array()).empty()) {
         // Rows "<backbone>, plain" then "<backbone> + ours, N = k".
         std::map<std::string, PlotSeries> cd, time;
         std::vector<std::string> order;
         for (const nlohmann::json& row : tables["table5"]["rows"]) {
             std::string label = row.at("label");
             size_t plain = label.find(", plain"), n_at = label.find("N = ");
-            std::string backbone = label.substr(0, plain != std::string::npos ? plain : label.find(" + "));
+            std::string backbone =
+                label.substr(0, plain != std::string::npos ? plain : label.find(" + "));
             double n = plain != std::string::npos ? 0 : std::stod(label.substr(n_at + 4));
             if (!cd.count(backbone)) order.push_back(backbone);
             for (const nlohmann::json& cell : row.at("cells")) {
@@ -282,8 +295,8 @@ ReportSummary write_report(const std::string& results_dir, const std::string& ou
                 series->y.push_back(mean_of(cell) * (cell["metric"] == "cd" ? 1e4 : 1e3));
             }
         }
-        LinePlot cd_plot{"Table V: CD after N adaptation steps (N = 0: plain)", "N",
-                         "CD (x1e-4)", {}};
+        LinePlot cd_plot{
+            "Table V: CD after N adaptation steps (N = 0: plain)", "N", "CD (x1e-4)", {}};
         LinePlot time_plot{"Table V: time per object", "N", "ms per object", {}};
         for (const std::string& b : order) {
             cd_plot.series.push_back(cd[b]);
@@ -292,9 +305,12 @@ ReportSummary write_report(const std::string& results_dir, const std::string& ou
         write_plot(cd_plot, "figures/table5-cd.png");
         write_plot(time_plot, "figures/table5-time.png");
     }
-    if (tables.contains("table2") && !tables["table2"].value("rows", nlohmann::json::array()).empty()) {
-        LinePlot noise_plot{"Table II: CD vs input noise", "noise (% of the bounding-box diagonal)",
-                            "CD (x1e-4)", {}};
+    if (tables.contains("table2") &&
+        !tables["table2"].value("rows", nlohmann::json::array()).empty()) {
+        LinePlot noise_plot{"Table II: CD vs input noise",
+                            "noise (% of the bounding-box diagonal)",
+                            "CD (x1e-4)",
+                            {}};
         for (const nlohmann::json& row : tables["table2"]["rows"]) {
             PlotSeries series{row.at("label").get<std::string>(), {}, {}};
             for (const nlohmann::json& cell : row.at("cells")) {

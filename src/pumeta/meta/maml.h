@@ -8,9 +8,9 @@
 #pragma once
 
 #include <ATen/core/Tensor.h>
-#include <nlohmann/json.hpp>
 
 #include <cstdint>
+#include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
@@ -61,18 +61,18 @@ ParamMap adapt(const Backbone& model, const ParamMap& params, const at::Tensor& 
                bool create_graph, std::vector<double>* losses = nullptr);
 
 struct MetaStepResult {
-    double outer_loss = 0;          ///< mean over tasks of L(F_θn(X_n), Y_n)
-    double outer_loss_before = 0;   ///< mean over tasks of L(F_θ(X_n), Y_n) (no adaptation)
-    double inner_loss_before = 0;   ///< mean self-supervised loss before the first inner step
-    double inner_loss_after = 0;    ///< ... and after the last
-    ParamMap grads;                 ///< d outer / d θ, named like the parameters
-    ParamMap step_size_grads;       ///< d outer / d α (Meta-SGD only)
+    double outer_loss = 0;         ///< mean over tasks of L(F_θn(X_n), Y_n)
+    double outer_loss_before = 0;  ///< mean over tasks of L(F_θ(X_n), Y_n) (no adaptation)
+    double inner_loss_before = 0;  ///< mean self-supervised loss before the first inner step
+    double inner_loss_after = 0;   ///< ... and after the last
+    ParamMap grads;                ///< d outer / d θ, named like the parameters
+    ParamMap step_size_grads;      ///< d outer / d α (Meta-SGD only)
 };
 
 /// One outer iteration's gradient over a batch of tasks x [B,N,3], y [B,rN,3], each task
 /// adapted on its own (Algorithm 1, lines 3-8). Task n's X↓ uses seed + n.
 MetaStepResult meta_gradient(const Backbone& model, const at::Tensor& x, const at::Tensor& y,
-                             const MetaOptions& options, const StepSizes& step_sizes,
-                             uint64_t seed, int64_t step = 0);
+                             const MetaOptions& options, const StepSizes& step_sizes, uint64_t seed,
+                             int64_t step = 0);
 
 }  // namespace pumeta

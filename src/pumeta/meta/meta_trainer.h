@@ -9,9 +9,8 @@
 // writes the run directory; every rank resumes from it.
 #pragma once
 
-#include <nlohmann/json.hpp>
-
 #include <cstdint>
+#include <nlohmann/json.hpp>
 #include <string>
 
 #include "pumeta/distributed/process_group.h"

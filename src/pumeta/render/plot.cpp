@@ -12,8 +12,8 @@ namespace pumeta {
 
 namespace {
 
-constexpr std::array<std::array<uint8_t, 3>, 6> kPalette{{
-    {31, 119, 180}, {214, 39, 40}, {44, 160, 44}, {255, 127, 14}, {148, 103, 189}, {140, 86, 75}}};
+constexpr std::array<std::array<uint8_t, 3>, 6> kPalette{
+    {{31, 119, 180}, {214, 39, 40}, {44, 160, 44}, {255, 127, 14}, {148, 103, 189}, {140, 86, 75}}};
 
 void fill_rect(Image& image, int x0, int y0, int x1, int y1, std::array<uint8_t, 3> color) {
     for (int y = std::max(y0, 0); y < std::min(y1, image.height); ++y)

@@ -174,7 +174,8 @@ void draw_text(Image& image, const std::string& text, int centre_x, int top, int
         int py0 = std::max(top + static_cast<int>(std::lround(y0 * scale)), 0);
         int py1 = std::min(top + static_cast<int>(std::lround(y1 * scale)), image.height);
         for (int y = py0; y < py1; ++y)
-            for (int x = px0; x < px1; ++x) std::copy(color.begin(), color.end(), image.pixel(x, y));
+            for (int x = px0; x < px1; ++x)
+                std::copy(color.begin(), color.end(), image.pixel(x, y));
     }
 }
 

@@ -63,8 +63,7 @@ Geometry read_obj(const std::string& path, std::string_view data) {
             has_faces = true;
         }
     }
-    if (skipped_edges > 0)
-        spdlog::warn("{}: skipped {} two-vertex face(s)", path, skipped_edges);
+    if (skipped_edges > 0) spdlog::warn("{}: skipped {} two-vertex face(s)", path, skipped_edges);
     Geometry geometry;
     geometry.cloud.points = rows_tensor(points);
     if (has_faces) {
