@@ -5,6 +5,9 @@
 #include <ATen/ATen.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <fstream>
+
 #include "pumeta/core/error.h"
 #include "pumeta/data/patch_set.h"
 #include "pumeta/models/backbone.h"
@@ -103,6 +106,33 @@ TEST(Train, InitFromIsRecordedAndJsonRoundTrips) {
     TrainConfig back = TrainConfig::from_json(config.to_json());
     EXPECT_EQ(back.init_from, config.init_from);
     EXPECT_EQ(back.to_json(), config.to_json());
+}
+
+TEST(Train, CiPresetTrainsThePaperWidthModelInSecondsAndResumes) {
+    nlohmann::json j =
+        nlohmann::json::parse(std::ifstream(test::source_dir() + "/configs/pugcn-x4-ci.json"));
+    test::TempDir dir;
+    // The preset's recipe on a miniature patch set of 256-point patches at 4x.
+    PatchSet set;
+    set.ratio = 4;
+    set.patch_points = 256;
+    set.points = test::random_points(2 * 1200, 7);
+    set.offsets = at::tensor({int64_t{0}, int64_t{1200}, int64_t{2400}});
+    set.seeds = at::tensor(std::vector<int64_t>{0, 0, 0, 600, 1, 0, 1, 600}).view({4, 2});
+    set.ids = {"a", "b"};
+    save_patch_set(dir.file("train.tensors"), set);
+    j["train_data"] = dir.file("train.tensors");
+    j["val_data"] = dir.file("train.tensors");
+    j["run_dir"] = dir.file("ci");
+    TrainConfig config = TrainConfig::from_json(j);
+    TrainResult result = train(config, /*resume=*/false);
+    EXPECT_EQ(result.steps, 20);
+    EXPECT_TRUE(std::isfinite(result.best_val_cd));
+    EXPECT_GT(result.best_val_cd, 0);
+    LoadedCheckpoint trained = load_checkpoint(dir.file("ci/model.pt"));
+    EXPECT_EQ(count_parameters(trained.backbone->parameters()), 75971);  // paper width
+    config.steps = 30;
+    EXPECT_EQ(train(config, /*resume=*/true).steps, 30);
 }
 
 TEST(Train, ConfigTypeErrorsAreInputErrorsNamingTheField) {
