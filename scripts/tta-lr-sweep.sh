@@ -22,7 +22,7 @@ for alpha in "$@"; do
 import json, sys
 r = json.load(open(sys.argv[2]))
 before, after = r["val_cd_before"], r["val_cd_after"]
-change = "diverged" if after != after else f"{100 * (after - before) / before:+.2f} %"
-print(f"{sys.argv[1]:<8} {before:<12.5e} {after:<12.5e} {change}")
+change = "diverged" if after is None or after != after else f"{100 * (after - before) / before:+.2f} %"
+print(f"{sys.argv[1]:<8} {before:<12.5e} {after if after is None else format(after, '<12.5e')} {change}")
 PY
 done

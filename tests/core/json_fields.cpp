@@ -2,6 +2,7 @@
 
 #include <gtest/gtest.h>
 
+#include <map>
 #include <string>
 #include <vector>
 
@@ -30,6 +31,8 @@ struct Config {
     std::vector<double> noise;
     nlohmann::json anything;
     Inner inner;
+    std::vector<Inner> inners;
+    std::map<std::string, double> rates;
 };
 
 template <class Self, class Visit>
@@ -44,6 +47,8 @@ void visit_fields(Self& c, Visit&& visit) {
     visit("noise", c.noise);
     visit("anything", c.anything);
     visit("inner", c.inner);
+    visit("inners", c.inners);
+    visit("rates", c.rates);
 }
 
 Config read(const nlohmann::json& j) {
@@ -83,10 +88,12 @@ TEST(JsonFields, WriteThenReadRoundTripsEveryField) {
     c.name = "b", c.steps = -3, c.seed = 18446744073709551615ull, c.lr = 1e-7;
     c.augment = false, c.adapt = {"head."}, c.anything = {{"k", 1}}, c.inner.count = 4;
     c.ratios = {8, 16}, c.noise = {0.5, 2};
+    c.inners = {Inner{2}, Inner{3}}, c.rates = {{"pugcn", 0.01}, {"dispu-x4", 1e-6}};
     const Config& view = c;
     nlohmann::json j = write_fields([&](auto&& visit) { visit_fields(view, visit); });
-    EXPECT_EQ(j.size(), 10u);
+    EXPECT_EQ(j.size(), 12u);
     EXPECT_EQ(j["inner"], nlohmann::json({{"count", 4}}));
+    EXPECT_EQ(j["inners"], nlohmann::json::parse(R"([{"count":2},{"count":3}])"));
     Config back = read(j);
     EXPECT_EQ(back.name, "b");
     EXPECT_EQ(back.steps, -3);
@@ -98,6 +105,9 @@ TEST(JsonFields, WriteThenReadRoundTripsEveryField) {
     EXPECT_EQ(back.inner.count, 4);
     EXPECT_EQ(back.ratios, (std::vector<int64_t>{8, 16}));
     EXPECT_EQ(back.noise, (std::vector<double>{0.5, 2.0}));
+    ASSERT_EQ(back.inners.size(), 2u);
+    EXPECT_EQ(back.inners[1].count, 3);
+    EXPECT_EQ(back.rates, c.rates);
 }
 
 TEST(JsonFields, UnknownFieldsAndWrongTypesAreInputErrorsNamingTheField) {
@@ -117,6 +127,12 @@ TEST(JsonFields, UnknownFieldsAndWrongTypesAreInputErrorsNamingTheField) {
     EXPECT_EQ(error_of({{"noise", 0.5}}),
               "test config: 'noise' must be a list of numbers, found 0.5");
     EXPECT_EQ(error_of({{"inner", 5}}), "inner: expected an object");
+    EXPECT_EQ(error_of({{"inners", {{{"count", 1}}, 5}}}), "inner: expected an object");
+    EXPECT_EQ(error_of({{"inners", 5}}),
+              "test config: 'inners' must be a list of objects, found 5");
+    EXPECT_EQ(error_of({{"rates", {{"pugcn", "fast"}}}}),
+              "test config: 'rates' must be an object of numbers, found "
+              "{\"pugcn\":\"fast\"}");
     EXPECT_EQ(error_of(nlohmann::json::array({1})),
               "test config: expected a JSON object, found [1]");
 }

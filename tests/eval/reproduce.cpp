@@ -171,5 +171,22 @@ TEST(ReproduceConfig, BudgetsOverrideFieldsAndMistakesAreInputErrors) {
     EXPECT_EQ(lrs.tta_lr_for("dispu", 8), -1);
 }
 
+TEST(ReproduceConfig, TheShippedConfigRoundTripsThroughJson) {
+    std::ifstream in(std::string(PUMETA_SOURCE_DIR) + "/configs/reproduce.json");
+    ASSERT_TRUE(in) << "configs/reproduce.json";
+    ReproduceConfig full = ReproduceConfig::from_json(nlohmann::json::parse(in), "full");
+    EXPECT_FALSE(full.external_baselines.empty());
+    EXPECT_FALSE(full.zero_shot.backbones.empty());
+    nlohmann::json written = full.to_json();
+    written.erase("budget");
+    ReproduceConfig back = ReproduceConfig::from_json(written, "full");
+    EXPECT_EQ(back.to_json(), full.to_json());
+
+    EXPECT_THROW(ReproduceConfig::from_json({{"zero_shot", {{"backbone", {"pugcn"}}}}}, "full"),
+                 InputError);
+    EXPECT_THROW(ReproduceConfig::from_json({{"external_baselines", {{{"label", "x"}}}}}, "full"),
+                 InputError);
+}
+
 }  // namespace
 }  // namespace pumeta

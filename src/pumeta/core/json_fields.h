@@ -14,10 +14,12 @@
 //
 // Reading rejects unknown fields and wrong types with an InputError naming the field
 // ("train config: 'steps' must be an integer, found \"ten\""); "comment" is always allowed.
-// Nested configs are members with their own static from_json and to_json.
+// Nested configs are members (or lists of members) with their own static from_json and
+// to_json; string-keyed maps of scalars are objects.
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <nlohmann/json.hpp>
 #include <set>
 #include <string>
@@ -40,6 +42,16 @@ template <class T>
 struct IsVector : std::false_type {};
 template <class T>
 struct IsVector<std::vector<T>> : std::true_type {};
+
+template <class T>
+struct IsConfigList : std::false_type {};
+template <class T>
+struct IsConfigList<std::vector<T>> : IsConfig<T> {};
+
+template <class T>
+struct IsStringMap : std::false_type {};
+template <class T>
+struct IsStringMap<std::map<std::string, T>> : std::true_type {};
 
 /// Whether `value` can be read as a T, and how the error names T.
 template <class T>
@@ -72,8 +84,22 @@ const char* type_name() {
 }
 
 template <class T>
+const char* plural_name() {
+    if constexpr (std::is_same_v<T, bool>)
+        return "booleans";
+    else if constexpr (std::is_integral_v<T>)
+        return "integers";
+    else if constexpr (std::is_floating_point_v<T>)
+        return "numbers";
+    else
+        return "strings";
+}
+
+template <class T>
 const char* list_name() {
-    if constexpr (std::is_integral_v<T>)
+    if constexpr (IsConfig<T>::value)
+        return "a list of objects";
+    else if constexpr (std::is_integral_v<T>)
         return "a list of integers";
     else if constexpr (std::is_floating_point_v<T>)
         return "a list of numbers";
@@ -88,6 +114,12 @@ void read_value(const nlohmann::json& value, const std::string& key, const std::
         member = value;
     } else if constexpr (IsConfig<T>::value) {
         member = T::from_json(value);
+    } else if constexpr (IsConfigList<T>::value) {
+        if (!value.is_array())
+            throw_input_error(context, "'{}' must be {}, found {}", key,
+                              list_name<typename T::value_type>(), value.dump());
+        member.clear();
+        for (const nlohmann::json& item : value) member.push_back(T::value_type::from_json(item));
     } else if constexpr (IsVector<T>::value) {
         using Item = typename T::value_type;
         bool ok = value.is_array();
@@ -95,6 +127,17 @@ void read_value(const nlohmann::json& value, const std::string& key, const std::
         if (!ok)
             throw_input_error(context, "'{}' must be {}, found {}", key, list_name<Item>(),
                               value.dump());
+        member = value.get<T>();
+    } else if constexpr (IsStringMap<T>::value) {
+        using Item = typename T::mapped_type;
+        static_assert(std::is_arithmetic_v<Item> || std::is_same_v<Item, std::string>,
+                      "a map field needs scalar values");
+        bool ok = value.is_object();
+        if (ok)
+            for (const auto& [name, item] : value.items()) ok = ok && has_type<Item>(item);
+        if (!ok)
+            throw_input_error(context, "'{}' must be an object of {}, found {}", key,
+                              plural_name<Item>(), value.dump());
         member = value.get<T>();
     } else {
         static_assert(std::is_arithmetic_v<T> || std::is_same_v<T, std::string>,
@@ -108,10 +151,15 @@ void read_value(const nlohmann::json& value, const std::string& key, const std::
 
 template <class T>
 nlohmann::json write_value(const T& member) {
-    if constexpr (IsConfig<T>::value)
+    if constexpr (IsConfig<T>::value) {
         return member.to_json();
-    else
+    } else if constexpr (IsConfigList<T>::value) {
+        nlohmann::json list = nlohmann::json::array();
+        for (const auto& item : member) list.push_back(item.to_json());
+        return list;
+    } else {
         return member;
+    }
 }
 
 }  // namespace json_fields_detail

@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "pumeta/core/error.h"
+#include "pumeta/core/json_fields.h"
 #include "pumeta/core/sha256.h"
 #include "pumeta/eval/evaluate_cases.h"
 #include "pumeta/eval/paired_stats.h"
@@ -26,16 +27,6 @@ namespace fs = std::filesystem;
 namespace {
 
 constexpr const char* kContext = "reproduce config";
-
-template <typename T>
-void read_field(const nlohmann::json& j, const char* key, T& value) {
-    if (!j.contains(key)) return;
-    try {
-        value = j.at(key).get<T>();
-    } catch (const nlohmann::json::exception&) {
-        throw_input_error(kContext, "field '{}' has the wrong type: {}", key, j.at(key).dump());
-    }
-}
 
 std::string display_name(const std::string& backbone) {
     if (backbone == "pugcn") return "PU-GCN";
@@ -357,6 +348,69 @@ std::string counts_line(Runner& runner, const std::vector<std::string>& sets, in
 
 }  // namespace
 
+template <class Self, class Visit>
+void external_baseline_fields(Self& b, Visit&& visit) {
+    visit("label", b.label);
+    visit("command", b.command);
+}
+
+ExternalBaseline ExternalBaseline::from_json(const nlohmann::json& j) {
+    ExternalBaseline b;
+    read_fields(j, "reproduce config: external baseline",
+                [&](auto&& visit) { external_baseline_fields(b, visit); });
+    if (b.label.empty() || b.command.empty())
+        throw_input_error(kContext, "each external baseline needs a 'label' and a 'command'");
+    return b;
+}
+
+nlohmann::json ExternalBaseline::to_json() const {
+    return write_fields([&](auto&& visit) { external_baseline_fields(*this, visit); });
+}
+
+template <class Self, class Visit>
+void zero_shot_fields(Self& z, Visit&& visit) {
+    visit("steps", z.steps);
+    visit("batch_patches", z.batch_patches);
+    visit("lr", z.lr);
+    visit("max_cases", z.max_cases);
+    visit("backbones", z.backbones);
+}
+
+ZeroShotBaseline ZeroShotBaseline::from_json(const nlohmann::json& j) {
+    ZeroShotBaseline z;
+    read_fields(j, "reproduce config: zero_shot",
+                [&](auto&& visit) { zero_shot_fields(z, visit); });
+    if (z.steps < 1 || z.batch_patches < 1 || z.lr <= 0 || z.max_cases < 0)
+        throw_input_error(kContext, "zero_shot: steps, batch_patches, lr must be positive");
+    return z;
+}
+
+nlohmann::json ZeroShotBaseline::to_json() const {
+    return write_fields([&](auto&& visit) { zero_shot_fields(*this, visit); });
+}
+
+template <class Self, class Visit>
+void reproduce_fields(Self& c, Visit&& visit) {
+    visit("dataset_dir", c.dataset_dir);
+    visit("models_dir", c.models_dir);
+    visit("backbones", c.backbones);
+    visit("external_baselines", c.external_baselines);
+    visit("main_ratio", c.main_ratio);
+    visit("table3_ratios", c.table3_ratios);
+    visit("sets", c.sets);
+    visit("noise", c.noise);
+    visit("tta_steps", c.tta_steps);
+    visit("tta_unit", c.tta_unit);
+    visit("steps_sweep", c.steps_sweep);
+    visit("sweep_backbones", c.sweep_backbones);
+    visit("tta_lr_without_meta", c.tta_lr_without_meta);
+    visit("seed", c.seed);
+    visit("bootstrap_resamples", c.bootstrap_resamples);
+    visit("max_cases", c.max_cases);
+    visit("figure_cases", c.figure_cases);
+    visit("zero_shot", c.zero_shot);
+}
+
 ReproduceConfig ReproduceConfig::from_json(nlohmann::json j, const std::string& budget) {
     if (!j.is_object()) throw_input_error(kContext, "expected a JSON object");
     if (j.contains("budgets")) {
@@ -367,70 +421,9 @@ ReproduceConfig ReproduceConfig::from_json(nlohmann::json j, const std::string& 
     } else if (budget != "full") {
         throw_input_error(kContext, "budget '{}' needs a 'budgets' object", budget);
     }
-    static const std::set<std::string> known = {"comment",
-                                                "dataset_dir",
-                                                "models_dir",
-                                                "backbones",
-                                                "main_ratio",
-                                                "table3_ratios",
-                                                "sets",
-                                                "noise",
-                                                "tta_steps",
-                                                "tta_unit",
-                                                "steps_sweep",
-                                                "sweep_backbones",
-                                                "tta_lr_without_meta",
-                                                "seed",
-                                                "bootstrap_resamples",
-                                                "max_cases",
-                                                "figure_cases",
-                                                "external_baselines",
-                                                "zero_shot"};
-    for (const auto& [key, value] : j.items())
-        if (!known.count(key)) throw_input_error(kContext, "unknown field '{}'", key);
     ReproduceConfig c;
     c.budget = budget;
-    read_field(j, "dataset_dir", c.dataset_dir);
-    read_field(j, "models_dir", c.models_dir);
-    read_field(j, "backbones", c.backbones);
-    read_field(j, "main_ratio", c.main_ratio);
-    read_field(j, "table3_ratios", c.table3_ratios);
-    read_field(j, "sets", c.sets);
-    read_field(j, "noise", c.noise);
-    read_field(j, "tta_steps", c.tta_steps);
-    read_field(j, "tta_unit", c.tta_unit);
-    read_field(j, "steps_sweep", c.steps_sweep);
-    read_field(j, "sweep_backbones", c.sweep_backbones);
-    read_field(j, "tta_lr_without_meta", c.tta_lr_without_meta);
-    read_field(j, "seed", c.seed);
-    read_field(j, "bootstrap_resamples", c.bootstrap_resamples);
-    read_field(j, "max_cases", c.max_cases);
-    read_field(j, "figure_cases", c.figure_cases);
-    if (j.contains("zero_shot")) {
-        const nlohmann::json& z = j["zero_shot"];
-        if (!z.is_object()) throw_input_error(kContext, "'zero_shot' must be an object");
-        for (const auto& [key, value] : z.items())
-            if (key != "steps" && key != "batch_patches" && key != "lr" && key != "max_cases")
-                throw_input_error(kContext, "unknown field 'zero_shot.{}'", key);
-        read_field(z, "steps", c.zero_shot.steps);
-        read_field(z, "batch_patches", c.zero_shot.batch_patches);
-        read_field(z, "lr", c.zero_shot.lr);
-        read_field(z, "max_cases", c.zero_shot.max_cases);
-        if (c.zero_shot.steps < 1 || c.zero_shot.batch_patches < 1 || c.zero_shot.lr <= 0 ||
-            c.zero_shot.max_cases < 0)
-            throw_input_error(kContext, "zero_shot: steps, batch_patches, lr must be positive");
-    }
-    if (j.contains("external_baselines")) {
-        if (!j["external_baselines"].is_array())
-            throw_input_error(kContext, "'external_baselines' must be an array");
-        for (const nlohmann::json& b : j["external_baselines"]) {
-            if (!b.is_object() || !b.contains("label") || !b.contains("command") ||
-                !b["label"].is_string() || !b["command"].is_string())
-                throw_input_error(kContext,
-                                  "each external baseline needs a 'label' and a 'command' string");
-            c.external_baselines.push_back({b["label"], b["command"]});
-        }
-    }
+    read_fields(j, kContext, [&](auto&& visit) { reproduce_fields(c, visit); });
     if (c.main_ratio < 2) throw_input_error(kContext, "'main_ratio' must be at least 2");
     if (c.tta_steps < 1) throw_input_error(kContext, "'tta_steps' must be positive");
     if (c.tta_unit != "object" && c.tta_unit != "patch" && c.tta_unit != "cloud")
@@ -440,35 +433,9 @@ ReproduceConfig ReproduceConfig::from_json(nlohmann::json j, const std::string& 
 }
 
 nlohmann::json ReproduceConfig::to_json() const {
-    return {{"dataset_dir", dataset_dir},
-            {"models_dir", models_dir},
-            {"backbones", backbones},
-            {"main_ratio", main_ratio},
-            {"table3_ratios", table3_ratios},
-            {"sets", sets},
-            {"noise", noise},
-            {"tta_steps", tta_steps},
-            {"tta_unit", tta_unit},
-            {"steps_sweep", steps_sweep},
-            {"sweep_backbones", sweep_backbones},
-            {"tta_lr_without_meta", tta_lr_without_meta},
-            {"seed", seed},
-            {"bootstrap_resamples", bootstrap_resamples},
-            {"max_cases", max_cases},
-            {"figure_cases", figure_cases},
-            {"zero_shot",
-             {{"steps", zero_shot.steps},
-              {"batch_patches", zero_shot.batch_patches},
-              {"lr", zero_shot.lr},
-              {"max_cases", zero_shot.max_cases}}},
-            {"external_baselines",
-             [&] {
-                 nlohmann::json a = nlohmann::json::array();
-                 for (const ExternalBaseline& b : external_baselines)
-                     a.push_back({{"label", b.label}, {"command", b.command}});
-                 return a;
-             }()},
-            {"budget", budget}};
+    nlohmann::json j = write_fields([&](auto&& visit) { reproduce_fields(*this, visit); });
+    j["budget"] = budget;
+    return j;
 }
 
 double ReproduceConfig::tta_lr_for(const std::string& backbone, int64_t ratio) const {
@@ -739,7 +706,13 @@ nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_d
            << z.steps << " Adam steps of " << z.batch_patches << " patches, lr " << z.lr
            << ", random rotations; its time per object includes that training. Its base is the "
               "pretrained backbone on the same objects, so the change shows what external "
-              "pretraining buys.\n\n";
+              "pretraining buys.";
+        if (!z.backbones.empty()) {
+            md << " Zero-shot rows only for";
+            for (const std::string& b : z.backbones) md << " " << display_name(b);
+            md << " (`zero_shot.backbones`: the others cost too much time here).";
+        }
+        md << "\n\n";
         auto first = [&](RunSpec s) {
             s.max_cases = z.max_cases;
             return &runner.get(s);
@@ -757,14 +730,16 @@ nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_d
                                       return first(network_spec(set, r, *plain, 0));
                                   }),
                                   {}};
-            rows.push_back({display_name(backbone) + " zero-shot (from scratch)",
-                            per_set([&](const std::string& set) {
-                                RunSpec s = spec(set, r, "zero-shot");
-                                s.model = *plain;
-                                s.zero_shot = z;
-                                return first(s);
-                            }),
-                            base.runs});
+            const std::vector<std::string>& only = z.backbones;
+            if (only.empty() || std::count(only.begin(), only.end(), backbone))
+                rows.push_back({display_name(backbone) + " zero-shot (from scratch)",
+                                per_set([&](const std::string& set) {
+                                    RunSpec s = spec(set, r, "zero-shot");
+                                    s.model = *plain;
+                                    s.zero_shot = z;
+                                    return first(s);
+                                }),
+                                base.runs});
             rows.push_back(base);
             if (!meta) continue;
             rows.push_back({display_name(backbone) + " + ours (" + n_label + ")",

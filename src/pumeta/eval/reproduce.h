@@ -19,6 +19,9 @@ struct ExternalBaseline {
     /// Shell command with {input}, {output} (XYZ files), {ratio}, and {bindir} (the directory
     /// of the running program, where `pumeta-ear` is built).
     std::string command;
+
+    static ExternalBaseline from_json(const nlohmann::json& j);
+    nlohmann::json to_json() const;
 };
 
 /// The zero-shot internal-learning baseline (Table VI): a fresh backbone trained on each input
@@ -29,6 +32,11 @@ struct ZeroShotBaseline {
     double lr = 1e-3;
     /// Objects per set (0 = none: no Table VI).
     int64_t max_cases = 5;
+    /// Backbones with a zero-shot row (empty = all of ReproduceConfig::backbones).
+    std::vector<std::string> backbones;
+
+    static ZeroShotBaseline from_json(const nlohmann::json& j);
+    nlohmann::json to_json() const;
 };
 
 struct ReproduceConfig {
