@@ -9,9 +9,9 @@
 #include <ATen/ATen.h>
 #include <ATen/Parallel.h>
 #include <benchmark/benchmark.h>
-#include <malloc.h>
 #include <torch/csrc/autograd/autograd.h>
 
+#include "pumeta/core/allocator.h"
 #include "pumeta/nn/chamfer_loss.h"
 #include "pumeta/nn/conv.h"
 #include "pumeta/nn/dense_gcn.h"
@@ -124,8 +124,7 @@ BENCHMARK(BM_ChamferLoss)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRea
 }  // namespace
 
 int main(int argc, char** argv) {
-    mallopt(M_MMAP_MAX, 0);
-    mallopt(M_TRIM_THRESHOLD, 1 << 30);
+    pumeta::keep_freed_memory();  // as the CLI
     benchmark::Initialize(&argc, argv);
     if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
     benchmark::RunSpecifiedBenchmarks();

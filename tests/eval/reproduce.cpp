@@ -4,10 +4,18 @@
 // not change.
 #include "pumeta/eval/reproduce.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
+#include <algorithm>
+#include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <set>
+#include <string>
+#include <vector>
 
 #include "pumeta/core/error.h"
 #include "support/test_util.h"
@@ -149,6 +157,62 @@ TEST_F(ReproduceTest, ASecondRunReusesUnchangedEvaluationsAndRedoesChangedModels
     fs::copy_file(saved, models / "pugcn-x4.pt", fs::copy_options::overwrite_existing);
     EXPECT_NE(fs::last_write_time(plain_csv), plain_time);
     EXPECT_EQ(fs::last_write_time(zero_shot_csv), zero_shot_time);
+}
+
+std::vector<std::string> evaluated_cells(const fs::path& log) {
+    std::vector<std::string> cells;
+    std::ifstream in(log);
+    const std::string marker = "] evaluating ";
+    for (std::string line; std::getline(in, line);)
+        if (size_t at = line.find(marker); at != std::string::npos)
+            cells.push_back(line.substr(at + marker.size()));
+    return cells;
+}
+
+TEST_F(ReproduceTest, TwoProcessesOnOneOutputShareTheCellsAndAStaleLockIsTakenOver) {
+    fs::path out = dir_->path() / "shared", config_file = dir_->path() / "shared.json";
+    std::ofstream(config_file) << config_->dump();
+    // A lock left behind by a process of this host that has ended.
+    FILE* shell = popen("echo $$", "r");
+    ASSERT_NE(shell, nullptr);
+    long dead_pid = 0;
+    ASSERT_EQ(fscanf(shell, "%ld", &dead_pid), 1);
+    pclose(shell);
+    char host[256] = {};
+    gethostname(host, sizeof host - 1);
+    fs::create_directories(out / "runs/test-indist-x4");
+    std::ofstream(out / "runs/test-indist-x4/pugcn-x4.lock") << host << " " << dead_pid;
+
+    const std::string pumeta = test::built_program("pumeta");
+    ASSERT_FALSE(pumeta.empty());
+    auto command = [&](int i) {
+        return fmt::format("{} --threads 1 reproduce --config {} --budget quick -o {} 2> {}",
+                           pumeta, config_file.string(), out.string(),
+                           (dir_->path() / fmt::format("shared{}.log", i)).string());
+    };
+    std::string both = command(1) + " & first=$!; " + command(2) +
+                       "; second=$?; wait $first; exit $(( $? | second ))";
+    ASSERT_EQ(std::system(both.c_str()), 0)
+        << test::read_file((dir_->path() / "shared1.log").string())
+        << test::read_file((dir_->path() / "shared2.log").string());
+
+    // Every cell was evaluated by exactly one of the two processes, and none is left locked.
+    std::vector<std::string> one = evaluated_cells(dir_->path() / "shared1.log");
+    std::vector<std::string> two = evaluated_cells(dir_->path() / "shared2.log");
+    std::multiset<std::string> all(one.begin(), one.end());
+    all.insert(two.begin(), two.end());
+    int64_t cells = 0;
+    for (const auto& entry : fs::recursive_directory_iterator(out / "runs")) {
+        EXPECT_NE(entry.path().extension(), ".lock") << entry.path();
+        if (entry.path().filename() != "spec.json") continue;
+        ++cells;
+        std::string key = fs::relative(entry.path().parent_path(), out / "runs").string();
+        EXPECT_EQ(all.count(key), 1u) << key;
+    }
+    EXPECT_EQ(int64_t(all.size()), cells);
+    EXPECT_TRUE(std::count(all.begin(), all.end(), "test-indist-x4/pugcn-x4"));
+    EXPECT_NE(test::read_file((out / "tables.md").string()).find("## Table VI:"),
+              std::string::npos);
 }
 
 TEST(ReproduceConfig, BudgetsOverrideFieldsAndMistakesAreInputErrors) {

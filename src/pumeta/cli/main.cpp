@@ -1,7 +1,6 @@
 // pumeta: point-cloud upsampling with test-time adaptation. Exit codes: 0 success, 2 bad input
 // or usage, 1 internal failure.
 #include <ATen/Parallel.h>
-#include <malloc.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
 
@@ -10,14 +9,12 @@
 #include <exception>
 
 #include "pumeta/cli/commands.h"
+#include "pumeta/core/allocator.h"
 #include "pumeta/core/device.h"
 #include "pumeta/core/error.h"
 
 int main(int argc, char** argv) {
-    // glibc hands allocations over 32 MiB back to the OS on free, so every large per-edge
-    // tensor of a training step is page-faulted and zeroed afresh: 1.8x slower PU-GCN steps.
-    mallopt(M_MMAP_MAX, 0);
-    mallopt(M_TRIM_THRESHOLD, 1 << 30);
+    pumeta::keep_freed_memory();
     CLI::App app{
         "pumeta: upsample sparse point clouds with neural networks adapted to each "
         "input by meta-learning"};

@@ -1,23 +1,29 @@
 #include "pumeta/eval/reproduce.h"
 
+#include <fcntl.h>
 #include <spdlog/spdlog.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
+#include <chrono>
 #include <cmath>
+#include <csignal>
 #include <filesystem>
 #include <fstream>
 #include <functional>
 #include <optional>
 #include <set>
 #include <sstream>
+#include <thread>
 
 #include "pumeta/core/error.h"
 #include "pumeta/core/json_fields.h"
 #include "pumeta/core/sha256.h"
 #include "pumeta/eval/evaluate_cases.h"
 #include "pumeta/eval/paired_stats.h"
+#include "pumeta/geometry/io/file.h"
 #include "pumeta/inference/model_file.h"
 
 namespace pumeta {
@@ -114,6 +120,58 @@ void read_cases_csv(const fs::path& file, RunResult& result) {
     }
 }
 
+/// An exclusive claim on one cell, so that several `pumeta reproduce` processes with the same
+/// output directory can share the work: the file <cell>.lock holds the owner's host and pid
+/// and is created with O_EXCL. A lock of a process of this host that no longer runs is stale
+/// and taken over.
+class CellLock {
+  public:
+    static std::optional<CellLock> try_claim(const fs::path& file) {
+        fs::create_directories(file.parent_path());
+        const std::string owner = fmt::format("{} {}", host_name(), getpid());
+        for (int attempt = 0; attempt < 2; ++attempt) {
+            int fd = ::open(file.c_str(), O_CREAT | O_EXCL | O_WRONLY, 0644);
+            if (fd >= 0) {
+                bool written = ::write(fd, owner.data(), owner.size()) == ssize_t(owner.size());
+                ::close(fd);
+                if (!written) throw InternalError("cannot write " + file.string());
+                return CellLock(file);
+            }
+            if (errno != EEXIST) throw InternalError("cannot create " + file.string());
+            std::string host;
+            long pid = 0;
+            std::ifstream(file) >> host >> pid;
+            bool alive =
+                host != host_name() || pid <= 0 || ::kill(pid_t(pid), 0) == 0 || errno != ESRCH;
+            if (alive) return std::nullopt;
+            spdlog::warn("reproduce: taking over {} (process {} has ended)", file.string(), pid);
+            fs::remove(file);
+        }
+        return std::nullopt;
+    }
+    CellLock(CellLock&& other) noexcept : file_(std::move(other.file_)) { other.file_.clear(); }
+    CellLock& operator=(CellLock&& other) noexcept {
+        release();
+        file_ = std::move(other.file_);
+        other.file_.clear();
+        return *this;
+    }
+    ~CellLock() { release(); }
+
+  private:
+    explicit CellLock(fs::path file) : file_(std::move(file)) {}
+    void release() {
+        std::error_code ignored;
+        if (!file_.empty()) fs::remove(file_, ignored);
+    }
+    static std::string host_name() {
+        char name[256] = {};
+        gethostname(name, sizeof name - 1);
+        return name[0] ? name : "localhost";
+    }
+    fs::path file_;
+};
+
 class Runner {
   public:
     Runner(const ReproduceConfig& config, fs::path out_dir, std::string command_line)
@@ -167,11 +225,22 @@ class Runner {
         }
         if (spec.method == "external") identity["command"] = spec.command;
         fs::path spec_file = dir / "spec.json";
-        bool reusable = fs::exists(dir / "cases.csv") && fs::exists(dir / "summary.json") &&
-                        fs::exists(spec_file) &&
-                        nlohmann::json::parse(std::ifstream(spec_file), nullptr, false) == identity;
+        auto reusable = [&] {
+            return fs::exists(dir / "cases.csv") && fs::exists(dir / "summary.json") &&
+                   fs::exists(spec_file) &&
+                   nlohmann::json::parse(std::ifstream(spec_file), nullptr, false) == identity;
+        };
+        std::optional<CellLock> lock;
+        if (!reusable()) {
+            lock = CellLock::try_claim(fs::path(dir.string() + ".lock"));
+            if (!lock) {  // another process evaluates it: come back in a later pass
+                ++deferred_;
+                done_.erase(key);
+                return deferred_result_;
+            }
+        }
         ++count_;
-        if (!reusable) {
+        if (lock && !reusable()) {
             spdlog::info("reproduce: [{}] evaluating {}", count_, key);
             fs::remove_all(dir);
             EvalOptions options;
@@ -211,12 +280,20 @@ class Runner {
         return result;
     }
 
+    /// Cells skipped in this pass because another process holds their lock; reset by
+    /// start_pass().
+    int64_t deferred() const { return deferred_; }
+    void start_pass() { deferred_ = 0; }
+
   private:
     const ReproduceConfig& config_;
     fs::path out_dir_;
     std::string command_line_;
     std::map<std::string, RunResult> done_;
+    // ok = false: a placeholder cell until a later pass.
+    RunResult deferred_result_{"", false, "being evaluated by another process", {}, {}, {}};
     int64_t count_ = 0;
+    int64_t deferred_ = 0;
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -446,10 +523,12 @@ double ReproduceConfig::tta_lr_for(const std::string& backbone, int64_t ratio) c
     return -1;
 }
 
-nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_dir,
-                         const std::string& command_line) {
-    fs::create_directories(out_dir);
-    Runner runner(config, out_dir, command_line);
+namespace {
+
+/// One pass over every table: evaluates (or reuses) each cell through `runner` and returns
+/// tables.json with the markdown under "markdown".
+nlohmann::json tables_pass(const ReproduceConfig& config, Runner& runner,
+                           const std::string& command_line) {
     TableWriter writer(config);
     std::ostringstream& md = writer.out();
     nlohmann::json tables = {{"config", config.to_json()},
@@ -762,10 +841,30 @@ nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_d
     md << "## Paired comparisons\n\n";
     for (const std::string& line : writer.details()) md << line << "\n";
     tables["markdown"] = md.str();
-
-    std::ofstream(fs::path(out_dir) / "tables.md") << md.str();
-    std::ofstream(fs::path(out_dir) / "tables.json") << tables.dump(2) << "\n";
     return tables;
+}
+
+}  // namespace
+
+nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_dir,
+                         const std::string& command_line) {
+    fs::create_directories(out_dir);
+    Runner runner(config, out_dir, command_line);
+    for (;;) {
+        runner.start_pass();
+        nlohmann::json tables = tables_pass(config, runner, command_line);
+        if (runner.deferred() == 0) {
+            io::write_atomically((fs::path(out_dir) / "tables.md").string(),
+                                 tables["markdown"].get<std::string>());
+            io::write_atomically((fs::path(out_dir) / "tables.json").string(),
+                                 tables.dump(2) + "\n");
+            return tables;
+        }
+        // Another `pumeta reproduce` on the same output evaluates these cells.
+        spdlog::info("reproduce: waiting for {} cells that another process is evaluating",
+                     runner.deferred());
+        std::this_thread::sleep_for(std::chrono::seconds(3));
+    }
 }
 
 }  // namespace pumeta
