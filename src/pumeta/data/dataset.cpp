@@ -111,13 +111,14 @@ TriangleMesh load_item_mesh(const Item& item, const std::string& raw_dir) {
     return read_mesh((fs::path(raw_dir) / item.model.path).string());
 }
 
-/// Runs work(i) for i in [0, n) on `threads` workers, collecting failures per item.
+/// Runs work(i) for i in [0, n) on as many workers as the caller's torch thread count
+/// (`pumeta --threads N`; all cores by default), collecting failures per item.
 template <typename Work>
 void for_each_parallel(int64_t n, const std::string& label, Work work) {
     std::atomic<int64_t> next{0}, done{0};
     std::mutex mutex;
     ProgressBar progress(n, label);
-    int threads = std::max(1u, std::thread::hardware_concurrency());
+    const int threads = std::max(1, at::get_num_threads());
     std::vector<std::thread> workers;
     for (int t = 0; t < threads; ++t)
         workers.emplace_back([&] {
