@@ -265,6 +265,17 @@ TEST(DisPu, LossCombinesCoarseFineAndRepulsionTermsWithTheSchedule) {
                 1e-4 * expected(0.01));
     EXPECT_NEAR(model.loss(input, target, model.parameters(), 40).item<double>(), expected(1.0),
                 1e-4 * expected(1.0));
+    // The same loss term by term, for the training log.
+    auto terms = model.loss_terms(input, target, model.parameters(), 40);
+    ASSERT_EQ(terms.size(), 3u);
+    EXPECT_EQ(terms[0].first, "coarse");
+    EXPECT_EQ(terms[1].first, "fine");
+    EXPECT_EQ(terms[2].first, "repulsion");
+    DisPuOutput out = model.forward(input, model.parameters(), NormStatistics::kBatch);
+    EXPECT_NEAR(terms[1].second.item<double>(),
+                2000 * chamfer_loss(out.fine, target).item<double>(), 1e-4 * expected(1.0));
+    EXPECT_NEAR(terms[2].second.item<double>(), 2.0 * repulsion_loss(out.fine).item<double>(),
+                1e-4 * expected(1.0));
     // After 12 pretraining steps the schedule continues from step 11 (epoch 11: w = 0.1) for
     // callers that pass no step, as meta-learning does.
     for (int i = 0; i < 12; ++i) model.update_buffers(input, model.parameters());

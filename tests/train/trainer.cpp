@@ -7,6 +7,8 @@
 
 #include <cmath>
 #include <fstream>
+#include <string>
+#include <vector>
 
 #include "pumeta/core/error.h"
 #include "pumeta/data/patch_set.h"
@@ -56,6 +58,53 @@ TrainConfig tiny_config(const test::TempDir& dir, int64_t ratio, const std::stri
     c.steps = 0;
     c.log_every = 1;
     return c;
+}
+
+std::vector<nlohmann::json> loss_lines(const std::string& log) {
+    std::vector<nlohmann::json> lines;
+    std::ifstream in(log);
+    for (std::string line; std::getline(in, line);) {
+        nlohmann::json j = nlohmann::json::parse(line);
+        if (j.contains("loss")) lines.push_back(j);
+    }
+    return lines;
+}
+
+TEST(Train, LogsEachTermOfALossWithSeveral) {
+    test::TempDir dir;
+    TrainConfig config = tiny_config(dir, 4, "dispu");
+    config.backbone = {{"backbone", "dispu"},
+                       {"ratio", 4},
+                       {"k", 4},
+                       {"growth", 4},
+                       {"blocks", 2},
+                       {"expand_channels", 8},
+                       {"feature_channels", 8},
+                       {"regressor_channels", 8},
+                       {"regressor_bottleneck", 4},
+                       {"refiner_channels", 4},
+                       {"refiner_out_channels", 8},
+                       {"attention_channels", 4},
+                       {"patch_size", 16},
+                       {"repulsion_weight", 1.0},
+                       {"seed", 3}};
+    config.steps = 2;
+    train(config, false);
+    std::vector<nlohmann::json> lines = loss_lines(dir.file("dispu/log.jsonl"));
+    ASSERT_EQ(lines.size(), 2u);
+    for (const nlohmann::json& j : lines) {
+        const double sum = j.at("loss_coarse").get<double>() + j.at("loss_fine").get<double>() +
+                           j.at("loss_repulsion").get<double>();
+        EXPECT_NEAR(j.at("loss").get<double>(), sum, 1e-5 * sum) << j.dump();
+    }
+
+    // A one-term loss logs only "loss".
+    TrainConfig plain = tiny_config(dir, 4, "pugcn");
+    plain.steps = 1;
+    train(plain, false);
+    std::vector<nlohmann::json> pugcn = loss_lines(dir.file("pugcn/log.jsonl"));
+    ASSERT_EQ(pugcn.size(), 1u);
+    for (const auto& [key, value] : pugcn[0].items()) EXPECT_NE(key.rfind("loss_", 0), 0u) << key;
 }
 
 TEST(Train, InitFromCopiesEveryTensorWhoseNameAndShapeMatch) {

@@ -9,6 +9,8 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "pumeta/nn/parameters.h"
 
@@ -44,6 +46,15 @@ class Backbone {
     /// inner / test-time loss (X↓, X).
     virtual at::Tensor loss(const at::Tensor& input, const at::Tensor& target,
                             const ParamMap& params, int64_t step = 0) const = 0;
+
+    /// The same loss as named terms whose sum, in order, is loss() (pretraining logs each
+    /// term). Default: the one term "loss".
+    virtual std::vector<std::pair<std::string, at::Tensor>> loss_terms(const at::Tensor& input,
+                                                                       const at::Tensor& target,
+                                                                       const ParamMap& params,
+                                                                       int64_t step = 0) const {
+        return {{"loss", loss(input, target, params, step)}};
+    }
 
     /// The training-pair downsampler: dense [B,M,3] -> sparse [B,M/r,3], the pattern the
     /// backbone was trained on (e.g. uniform random or FPS subset, or the PU-GAN non-uniform

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <fstream>
 #include <limits>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -229,15 +230,20 @@ TrainResult train(const TrainConfig& config, bool resume, double stop_after_seco
     std::optional<ProgressBar> progress;
     if (writes) progress.emplace(config.steps, "train");
     double loss_sum = 0;
+    std::map<std::string, double> term_sums;  // of backbones whose loss has several terms
     int64_t loss_count = 0, first_step = step;
     int64_t saved_step = state_info.is_null() ? -1 : step;
     while (step < config.steps) {
         Batch batch = loader.next();
         adam.set_lr(learning_rate(config, step));
         model->update_buffers(batch.input, model->parameters());
-        at::Tensor loss = model->loss(batch.input, batch.gt, model->parameters(), step);
+        auto terms = model->loss_terms(batch.input, batch.gt, model->parameters(), step);
+        at::Tensor loss = terms.front().second;
+        for (size_t i = 1; i < terms.size(); ++i) loss = loss + terms[i].second;
         ParamMap grads = gradients(loss, model->parameters());
         double loss_value = loss.item<double>();
+        if (terms.size() > 1)
+            for (const auto& [name, term] : terms) term_sums[name] += term.item<double>();
         bool stop = stop_after_seconds > 0 && elapsed() > stop_after_seconds;
         if (group.enabled()) all_reduce_step(group, grads, model->buffers(), loss_value, stop);
         adam.step(grads);
@@ -254,11 +260,17 @@ TrainResult train(const TrainConfig& config, bool resume, double stop_after_seco
             progress->update(step, fmt::format("loss {:.3e} val {:.3e}", loss_value, last_val));
         if (writes && step % config.log_every == 0) {
             double seconds = elapsed();
-            append_log(log_file, {{"step", step},
-                                  {"loss", loss_sum / loss_count},
-                                  {"lr", adam.lr()},
-                                  {"seconds", seconds},
-                                  {"steps_per_second", (step - first_step) / seconds}});
+            nlohmann::json line = {{"step", step},
+                                   {"loss", loss_sum / loss_count},
+                                   {"lr", adam.lr()},
+                                   {"seconds", seconds},
+                                   {"steps_per_second", (step - first_step) / seconds}};
+            // This process's share of the batch only, when distributed.
+            for (auto& [name, sum] : term_sums) {
+                line["loss_" + name] = sum / loss_count;
+                sum = 0;
+            }
+            append_log(log_file, line);
             loss_sum = 0;
             loss_count = 0;
         }
