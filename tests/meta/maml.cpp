@@ -15,17 +15,7 @@ namespace pumeta {
 namespace {
 
 std::unique_ptr<Backbone> tiny_model(bool double_precision) {
-    nlohmann::json config = {{"backbone", "pugcn"},
-                             {"ratio", 2},
-                             {"channels", 4},
-                             {"k", 4},
-                             {"dilation", 2},
-                             {"upsample_channels", 4},
-                             {"reconstruction_channels", 4},
-                             {"patch_size", 16},
-                             {"downsampler", "random"},
-                             {"seed", 3}};
-    auto model = make_backbone(config);
+    auto model = make_backbone(test::tiny_pugcn_config(2, 3));
     if (double_precision) {
         // Moved to a generic point: at initialisation the biases are zero, so dead (zero)
         // features give the next layer pre-activations of exactly 0, on a ReLU's kink, where

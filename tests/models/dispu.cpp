@@ -26,22 +26,7 @@ namespace pumeta {
 namespace {
 
 // A very small Dis-PU for tests that train, differentiate twice or run many passes.
-nlohmann::json tiny_config(int64_t ratio = 4) {
-    return {{"backbone", "dispu"},
-            {"ratio", ratio},
-            {"k", 4},
-            {"growth", 4},
-            {"blocks", 2},
-            {"expand_channels", 8},
-            {"feature_channels", 8},
-            {"regressor_channels", 8},
-            {"regressor_bottleneck", 4},
-            {"refiner_channels", 4},
-            {"refiner_out_channels", 8},
-            {"attention_channels", 4},
-            {"patch_size", 16},
-            {"seed", 3}};
-}
+using test::tiny_dispu_config;
 
 DisPu make(const nlohmann::json& config) { return DisPu(DisPuOptions::from_json(config)); }
 
@@ -161,7 +146,7 @@ TEST(DisPu, GridCodeFollowsTheOriginalFactorisation) {
 }
 
 TEST(DisPu, DuplicatesAreCopyMajorAndDifferOnlyByTheirGridCode) {
-    DisPu model = make(tiny_config());
+    DisPu model = make(tiny_dispu_config());
     at::Tensor x = test::sheet(2, 16, 2);
     ParamMap params = model.parameters();
     at::NoGradGuard no_grad;
@@ -177,7 +162,7 @@ TEST(DisPu, DuplicatesAreCopyMajorAndDifferOnlyByTheirGridCode) {
 }
 
 TEST(DisPu, CoarseResidualAddsEachInputPointToItsCopies) {
-    nlohmann::json config = tiny_config();
+    nlohmann::json config = tiny_dispu_config();
     DisPu absolute = make(config);
     config["coarse_residual"] = true;
     DisPu residual = make(config);
@@ -195,7 +180,7 @@ TEST(DisPu, CoarseResidualAddsEachInputPointToItsCopies) {
 }
 
 TEST(DisPu, OffsetsAreBoundedAndAddedToTheCoarsePoints) {
-    DisPu model = make(tiny_config());
+    DisPu model = make(tiny_dispu_config());
     at::Tensor x = test::sheet(2, 16, 3);
     ParamMap params = model.parameters();
     params["fine.fc2.weight"] = at::zeros_like(params["fine.fc2.weight"]);
@@ -207,7 +192,7 @@ TEST(DisPu, OffsetsAreBoundedAndAddedToTheCoarsePoints) {
 }
 
 TEST(DisPu, CoarseOutputDoesNotDependOnTheRefiner) {
-    DisPu model = make(tiny_config());
+    DisPu model = make(tiny_dispu_config());
     at::Tensor x = test::sheet(1, 16, 4);
     ParamMap params = model.parameters();
     at::NoGradGuard no_grad;
@@ -249,7 +234,7 @@ TEST(DisPu, FineWeightScheduleSwitchesAfterEpochs10And20And30) {
 }
 
 TEST(DisPu, LossCombinesCoarseFineAndRepulsionTermsWithTheSchedule) {
-    nlohmann::json config = tiny_config();
+    nlohmann::json config = tiny_dispu_config();
     config["steps_per_epoch"] = 1;
     config["repulsion_weight"] = 2.0;
     DisPu model = make(config);
@@ -301,7 +286,7 @@ TEST(DisPu, CompactModelOverfitsOnePatch) {
 }
 
 TEST(DisPu, SecondOrderMetaGradientMatchesFiniteDifferences) {
-    nlohmann::json config = tiny_config(2);
+    nlohmann::json config = tiny_dispu_config(2);
     config["downsampler"] = "random";
     std::unique_ptr<Backbone> model = make_backbone(config);
     // Double precision at a generic point: zero biases would put ReLUs on their kinks.
@@ -352,7 +337,7 @@ TEST(DisPu, SecondOrderMetaGradientMatchesFiniteDifferences) {
 }
 
 TEST(DisPu, BatchNormBuffersChangeOnlyThroughUpdateBuffers) {
-    DisPu model = make(tiny_config());
+    DisPu model = make(tiny_dispu_config());
     at::Tensor x = test::sheet(2, 16, 14);
     at::Tensor y = test::sheet(2, 64, 15);
     ParamMap before = snapshot(model.buffers());
@@ -398,7 +383,7 @@ TEST(DisPu, BatchNormBuffersChangeOnlyThroughUpdateBuffers) {
 
 TEST(DisPu, CheckpointAndTrainingStateRoundTripIncludingBuffers) {
     test::TempDir dir;
-    DisPu model = make(tiny_config());
+    DisPu model = make(tiny_dispu_config());
     at::Tensor x = test::sheet(2, 16, 16);
     for (int i = 0; i < 3; ++i) model.update_buffers(x, model.parameters());
     {
@@ -424,7 +409,7 @@ TEST(DisPu, CheckpointAndTrainingStateRoundTripIncludingBuffers) {
 TEST(DisPu, CheckpointsWithMissingOrForeignBuffersAreInputErrors) {
     test::TempDir dir;
     auto error_after = [&](auto edit) -> std::string {
-        DisPu model = make(tiny_config());
+        DisPu model = make(tiny_dispu_config());
         edit(model.buffers());
         save_checkpoint(dir.file("m.pt"), model);
         try {
@@ -449,8 +434,8 @@ TEST(DisPu, CheckpointsWithMissingOrForeignBuffersAreInputErrors) {
 TEST(DisPu, WholeCloudUpsamplingGivesExactlyRatioTimesInputPoints) {
     at::Tensor cloud = test::random_points(300, 17);
     cloud = cloud / cloud.norm(2, 1, true);  // a sphere: a surface to cut patches from
-    std::unique_ptr<Backbone> x4 = make_backbone(tiny_config(4));
-    std::unique_ptr<Backbone> x8 = make_backbone(tiny_config(8));
+    std::unique_ptr<Backbone> x4 = make_backbone(tiny_dispu_config(4));
+    std::unique_ptr<Backbone> x8 = make_backbone(tiny_dispu_config(8));
     for (auto [model, ratio] :
          std::vector<std::pair<Backbone*, int64_t>>{{x4.get(), 4}, {x4.get(), 16}, {x8.get(), 8}}) {
         UpsampleOptions options;
@@ -535,7 +520,7 @@ TEST(DisPu, InvalidConfigsAreInputErrorsNamingTheField) {
 }
 
 TEST(DisPu, TooFewPointsOrWrongTypesAreInputErrors) {
-    DisPu model = make(tiny_config());
+    DisPu model = make(tiny_dispu_config());
     EXPECT_THROW(model.upsample(test::sheet(1, 1, 1)), InputError);
     EXPECT_THROW(model.upsample(test::sheet(1, 16, 1, at::kDouble)), InputError);
     EXPECT_THROW(model.upsample(at::zeros({1, 16, 2})), InputError);

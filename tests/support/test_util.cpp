@@ -142,6 +142,36 @@ std::unique_ptr<Backbone> tiny_pugcn(uint64_t seed) {
 
 }  // namespace
 
+nlohmann::json tiny_pugcn_config(int64_t ratio, uint64_t seed) {
+    return {{"backbone", "pugcn"},
+            {"ratio", ratio},
+            {"channels", 4},
+            {"k", 4},
+            {"dilation", 2},
+            {"upsample_channels", 4},
+            {"reconstruction_channels", 4},
+            {"patch_size", 16},
+            {"downsampler", "random"},
+            {"seed", seed}};
+}
+
+nlohmann::json tiny_dispu_config(int64_t ratio) {
+    return {{"backbone", "dispu"},
+            {"ratio", ratio},
+            {"k", 4},
+            {"growth", 4},
+            {"blocks", 2},
+            {"expand_channels", 8},
+            {"feature_channels", 8},
+            {"regressor_channels", 8},
+            {"regressor_bottleneck", 4},
+            {"refiner_channels", 4},
+            {"refiner_out_channels", 8},
+            {"attention_channels", 4},
+            {"patch_size", 16},
+            {"seed", 3}};
+}
+
 void save_tiny_meta_model(const std::string& path, uint64_t seed) {
     MetaOptions meta;
     meta.inner_steps = 2;

@@ -72,6 +72,13 @@ void make_raw_tree(const std::filesystem::path& raw);
 /// baselines "copy" = `cp {input} {output}` and "absent" = a program that does not exist).
 nlohmann::json make_tiny_reproduction(const std::filesystem::path& dir);
 
+/// A PU-GCN config of width 4 on 16-point patches (k 4, dilation 2, random X↓): a model
+/// small enough for finite differences and in-process training runs.
+nlohmann::json tiny_pugcn_config(int64_t ratio, uint64_t seed);
+
+/// A Dis-PU config of width 4–8 on 16-point patches (seed 3), for the same uses.
+nlohmann::json tiny_dispu_config(int64_t ratio = 4);
+
 /// Overwrites `path` with another tiny meta-trained PU-GCN (weights from `seed`).
 void save_tiny_meta_model(const std::string& path, uint64_t seed);
 

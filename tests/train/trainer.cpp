@@ -19,18 +19,7 @@
 namespace pumeta {
 namespace {
 
-nlohmann::json tiny_pugcn(int64_t ratio, uint64_t seed) {
-    return {{"backbone", "pugcn"},
-            {"ratio", ratio},
-            {"channels", 4},
-            {"k", 4},
-            {"dilation", 2},
-            {"upsample_channels", 4},
-            {"reconstruction_channels", 4},
-            {"patch_size", 16},
-            {"downsampler", "random"},
-            {"seed", seed}};
-}
+using test::tiny_pugcn_config;
 
 /// Two "meshes" of random points with six patch seeds each, for ratio `ratio`.
 std::string write_patch_set(const test::TempDir& dir, int64_t ratio) {
@@ -51,7 +40,7 @@ std::string write_patch_set(const test::TempDir& dir, int64_t ratio) {
 
 TrainConfig tiny_config(const test::TempDir& dir, int64_t ratio, const std::string& run) {
     TrainConfig c;
-    c.backbone = tiny_pugcn(ratio, 11);
+    c.backbone = tiny_pugcn_config(ratio, 11);
     c.train_data = write_patch_set(dir, ratio);
     c.run_dir = dir.file(run);
     c.batch_size = 4;
@@ -73,21 +62,8 @@ std::vector<nlohmann::json> loss_lines(const std::string& log) {
 TEST(Train, LogsEachTermOfALossWithSeveral) {
     test::TempDir dir;
     TrainConfig config = tiny_config(dir, 4, "dispu");
-    config.backbone = {{"backbone", "dispu"},
-                       {"ratio", 4},
-                       {"k", 4},
-                       {"growth", 4},
-                       {"blocks", 2},
-                       {"expand_channels", 8},
-                       {"feature_channels", 8},
-                       {"regressor_channels", 8},
-                       {"regressor_bottleneck", 4},
-                       {"refiner_channels", 4},
-                       {"refiner_out_channels", 8},
-                       {"attention_channels", 4},
-                       {"patch_size", 16},
-                       {"repulsion_weight", 1.0},
-                       {"seed", 3}};
+    config.backbone = test::tiny_dispu_config();
+    config.backbone["repulsion_weight"] = 1.0;
     config.steps = 2;
     train(config, false);
     std::vector<nlohmann::json> lines = loss_lines(dir.file("dispu/log.jsonl"));
@@ -109,14 +85,14 @@ TEST(Train, LogsEachTermOfALossWithSeveral) {
 
 TEST(Train, InitFromCopiesEveryTensorWhoseNameAndShapeMatch) {
     test::TempDir dir;
-    auto source = make_backbone(tiny_pugcn(2, 99));
+    auto source = make_backbone(tiny_pugcn_config(2, 99));
     save_checkpoint(dir.file("x2.pt"), *source);
 
     TrainConfig config = tiny_config(dir, 4, "x4");
     config.init_from = dir.file("x2.pt");
     train(config, false);
     LoadedCheckpoint warm = load_checkpoint(dir.file("x4/model.pt"));
-    auto fresh = make_backbone(tiny_pugcn(4, 11));
+    auto fresh = make_backbone(tiny_pugcn_config(4, 11));
 
     int64_t copied = 0, kept = 0;
     for (const auto& [name, t] : warm.backbone->parameters()) {

@@ -204,26 +204,7 @@ class Runner {
             return result;
         }
         int64_t max_cases = spec.max_cases >= 0 ? spec.max_cases : config_.max_cases;
-        nlohmann::json identity = {{"cases", cases.string()},
-                                   {"method", spec.method},
-                                   {"tta_steps", spec.tta_steps},
-                                   {"tta_lr", spec.tta_lr},
-                                   {"tta_unit", config_.tta_unit},
-                                   {"noise", spec.noise},
-                                   {"seed", config_.seed},
-                                   {"max_cases", max_cases},
-                                   {"figure_cases", config_.figure_cases}};
-        if (spec.method == "network") identity["model_sha256"] = sha256_file(spec.model);
-        // A zero-shot model starts fresh: only the architecture matters, not the weights.
-        if (spec.method == "zero-shot") {
-            nlohmann::json architecture = load_inference_model(spec.model).backbone->config();
-            architecture.erase("seed");  // train_zero_shot sets its own
-            identity["architecture"] = architecture;
-            identity["zero_shot"] = {{"steps", spec.zero_shot.steps},
-                                     {"batch_patches", spec.zero_shot.batch_patches},
-                                     {"lr", spec.zero_shot.lr}};
-        }
-        if (spec.method == "external") identity["command"] = spec.command;
+        const nlohmann::json& identity = identity_of(key, spec, cases, max_cases);
         fs::path spec_file = dir / "spec.json";
         auto reusable = [&] {
             return fs::exists(dir / "cases.csv") && fs::exists(dir / "summary.json") &&
@@ -280,6 +261,35 @@ class Runner {
         return result;
     }
 
+    /// What a cell's result depends on (its spec.json). Computed once per cell: it hashes or
+    /// loads the model file, and a deferred cell is asked for again in every pass.
+    const nlohmann::json& identity_of(const std::string& key, const RunSpec& spec,
+                                      const fs::path& cases, int64_t max_cases) {
+        auto found = identities_.find(key);
+        if (found != identities_.end()) return found->second;
+        nlohmann::json identity = {{"cases", cases.string()},
+                                   {"method", spec.method},
+                                   {"tta_steps", spec.tta_steps},
+                                   {"tta_lr", spec.tta_lr},
+                                   {"tta_unit", config_.tta_unit},
+                                   {"noise", spec.noise},
+                                   {"seed", config_.seed},
+                                   {"max_cases", max_cases},
+                                   {"figure_cases", config_.figure_cases}};
+        if (spec.method == "network") identity["model_sha256"] = sha256_file(spec.model);
+        // A zero-shot model starts fresh: only the architecture matters, not the weights.
+        if (spec.method == "zero-shot") {
+            nlohmann::json architecture = load_inference_model(spec.model).backbone->config();
+            architecture.erase("seed");  // train_zero_shot sets its own
+            identity["architecture"] = architecture;
+            identity["zero_shot"] = {{"steps", spec.zero_shot.steps},
+                                     {"batch_patches", spec.zero_shot.batch_patches},
+                                     {"lr", spec.zero_shot.lr}};
+        }
+        if (spec.method == "external") identity["command"] = spec.command;
+        return identities_.emplace(key, std::move(identity)).first->second;
+    }
+
     /// Cells skipped in this pass because another process holds their lock; reset by
     /// start_pass().
     int64_t deferred() const { return deferred_; }
@@ -290,6 +300,7 @@ class Runner {
     fs::path out_dir_;
     std::string command_line_;
     std::map<std::string, RunResult> done_;
+    std::map<std::string, nlohmann::json> identities_;  // by cell key
     // ok = false: a placeholder cell until a later pass.
     RunResult deferred_result_{"", false, "being evaluated by another process", {}, {}, {}};
     int64_t count_ = 0;

@@ -19,6 +19,16 @@ namespace pumeta {
 /// A point-cloud upsampling network whose forward pass can run from its own parameters or from
 /// an explicit ParamMap with the same names (MAML's fast weights θ'), so that adapted weights
 /// need no module copies and the inner loop stays twice differentiable.
+/// A loss as named scalar terms, in the order they are summed.
+using LossTerms = std::vector<std::pair<std::string, at::Tensor>>;
+
+/// terms[0] + terms[1] + ... (in that order). `terms` must not be empty.
+inline at::Tensor sum_of(const LossTerms& terms) {
+    at::Tensor total = terms.front().second;
+    for (size_t i = 1; i < terms.size(); ++i) total = total + terms[i].second;
+    return total;
+}
+
 class Backbone {
   public:
     virtual ~Backbone() = default;
@@ -47,12 +57,10 @@ class Backbone {
     virtual at::Tensor loss(const at::Tensor& input, const at::Tensor& target,
                             const ParamMap& params, int64_t step = 0) const = 0;
 
-    /// The same loss as named terms whose sum, in order, is loss() (pretraining logs each
-    /// term). Default: the one term "loss".
-    virtual std::vector<std::pair<std::string, at::Tensor>> loss_terms(const at::Tensor& input,
-                                                                       const at::Tensor& target,
-                                                                       const ParamMap& params,
-                                                                       int64_t step = 0) const {
+    /// The same loss as named terms whose sum_of() is loss() (pretraining logs each term).
+    /// Default: the one term "loss".
+    virtual LossTerms loss_terms(const at::Tensor& input, const at::Tensor& target,
+                                 const ParamMap& params, int64_t step = 0) const {
         return {{"loss", loss(input, target, params, step)}};
     }
 

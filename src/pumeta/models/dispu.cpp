@@ -356,23 +356,17 @@ at::Tensor DisPu::upsample(const at::Tensor& x, const ParamMap& params) const {
 
 at::Tensor DisPu::loss(const at::Tensor& input, const at::Tensor& target, const ParamMap& params,
                        int64_t step) const {
-    std::vector<std::pair<std::string, at::Tensor>> terms = loss_terms(input, target, params, step);
-    at::Tensor total = terms.front().second;
-    for (size_t i = 1; i < terms.size(); ++i) total = total + terms[i].second;
-    return total;
+    return sum_of(loss_terms(input, target, params, step));
 }
 
-std::vector<std::pair<std::string, at::Tensor>> DisPu::loss_terms(const at::Tensor& input,
-                                                                  const at::Tensor& target,
-                                                                  const ParamMap& params,
-                                                                  int64_t step) const {
+LossTerms DisPu::loss_terms(const at::Tensor& input, const at::Tensor& target,
+                            const ParamMap& params, int64_t step) const {
     DisPuOutput out = forward(input, params, NormStatistics::kBatch);
     const double w =
         dispu_fine_weight(std::max(step, pretrain_steps() - 1), options_.steps_per_epoch);
     // Dis-PU's Chamfer distance sums the two directions' means: 2 · chamfer_loss.
-    std::vector<std::pair<std::string, at::Tensor>> terms = {
-        {"coarse", 2000.0 * chamfer_loss(out.coarse, target)},
-        {"fine", w * 2000.0 * chamfer_loss(out.fine, target)}};
+    LossTerms terms = {{"coarse", 2000.0 * chamfer_loss(out.coarse, target)},
+                       {"fine", w * 2000.0 * chamfer_loss(out.fine, target)}};
     if (options_.repulsion_weight > 0) {
         int64_t neighbors = std::min(kRepulsionNeighbors, out.fine.size(1) - 1);
         terms.emplace_back("repulsion", options_.repulsion_weight *

@@ -106,10 +106,8 @@ class DisPu : public Backbone {
     at::Tensor loss(const at::Tensor& input, const at::Tensor& target, const ParamMap& params,
                     int64_t step = 0) const override;
     /// "coarse", "fine" (weighted by the schedule) and, with a repulsion weight, "repulsion".
-    std::vector<std::pair<std::string, at::Tensor>> loss_terms(const at::Tensor& input,
-                                                               const at::Tensor& target,
-                                                               const ParamMap& params,
-                                                               int64_t step = 0) const override;
+    LossTerms loss_terms(const at::Tensor& input, const at::Tensor& target, const ParamMap& params,
+                         int64_t step = 0) const override;
 
     /// downsample_points(dense, M / r, options().downsampler, seed).
     at::Tensor downsample(const at::Tensor& dense, uint64_t seed) const override;

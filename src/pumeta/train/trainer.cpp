@@ -237,9 +237,8 @@ TrainResult train(const TrainConfig& config, bool resume, double stop_after_seco
         Batch batch = loader.next();
         adam.set_lr(learning_rate(config, step));
         model->update_buffers(batch.input, model->parameters());
-        auto terms = model->loss_terms(batch.input, batch.gt, model->parameters(), step);
-        at::Tensor loss = terms.front().second;
-        for (size_t i = 1; i < terms.size(); ++i) loss = loss + terms[i].second;
+        LossTerms terms = model->loss_terms(batch.input, batch.gt, model->parameters(), step);
+        at::Tensor loss = sum_of(terms);
         ParamMap grads = gradients(loss, model->parameters());
         double loss_value = loss.item<double>();
         if (terms.size() > 1)
