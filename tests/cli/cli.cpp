@@ -4,8 +4,11 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <fstream>
 
+#include "pumeta/data/patch_set.h"
 #include "pumeta/geometry/io.h"
+#include "pumeta/train/trainer.h"
 #include "support/test_util.h"
 
 namespace pumeta {
@@ -93,6 +96,38 @@ TEST(Cli, UnknownDeviceIsAnInputError) {
         {"upsample", dir.file("in.ply"), "-o", dir.file("out.ply"), "--device", "tpu"});
     EXPECT_EQ(r.exit_code, 2) << r.err;
     EXPECT_FALSE(fs::exists(dir.file("out.ply")));
+}
+
+TEST(Cli, TrainStoppedBySigtermSavesACheckpointAndExits130) {
+    test::TempDir dir;
+    PatchSet set;
+    set.ratio = 4;
+    set.patch_points = 16;
+    set.points = test::random_points(200, 5);
+    set.offsets = at::tensor({int64_t{0}, int64_t{200}});
+    set.seeds = at::tensor(std::vector<int64_t>{0, 0, 0, 99}).view({2, 2});
+    set.ids = {"a"};
+    save_patch_set(dir.file("train.tensors"), set);
+    TrainConfig config;
+    config.backbone = test::tiny_pugcn_config(4, 11);
+    config.train_data = dir.file("train.tensors");
+    config.run_dir = dir.file("run");
+    config.batch_size = 2;
+    config.steps = 1000000;  // only the signal ends it
+    config.log_every = 1;
+    std::ofstream(dir.file("train.json")) << config.to_json().dump();
+    // Start training, wait for its first log line, then send SIGTERM as a scheduler would.
+    const std::string script =
+        "\"$0\" train --config \"$1\" >/dev/null 2>\"$2\" & pid=$!; i=0; "
+        "while [ ! -s \"$3\" ] && [ $i -lt 1200 ]; do sleep 0.1; i=$((i+1)); done; "
+        "kill -TERM $pid; wait $pid; echo $?";
+    auto r = test::run_command("/bin/sh",
+                               {"-c", script, test::built_program("pumeta"), dir.file("train.json"),
+                                dir.file("err"), dir.file("run/log.jsonl")});
+    EXPECT_EQ(r.out, "130\n") << test::read_file(dir.file("err"));
+    EXPECT_NE(test::read_file(dir.file("err")).find("interrupted at step"), std::string::npos)
+        << test::read_file(dir.file("err"));
+    EXPECT_TRUE(fs::exists(dir.file("run/state.ckpt")));
 }
 
 }  // namespace

@@ -159,6 +159,22 @@ TEST_F(ReproduceTest, ASecondRunReusesUnchangedEvaluationsAndRedoesChangedModels
     EXPECT_EQ(fs::last_write_time(zero_shot_csv), zero_shot_time);
 }
 
+TEST_F(ReproduceTest, NoiseBackbonesLimitTableTwoToTheBackbonesListed) {
+    fs::path out = dir_->path() / "noise-rows";
+    ReproduceConfig c = config();
+    nlohmann::json all = reproduce(c, out.string(), "test");
+    EXPECT_NO_THROW(row(all.at("table2"), "PU-GCN"));
+
+    c.noise_backbones = {"dispu"};
+    nlohmann::json limited = reproduce(c, out.string(), "test");
+    EXPECT_THROW(row(limited.at("table2"), "PU-GCN"), std::runtime_error);
+    EXPECT_NO_THROW(row(limited.at("table2"), "midpoint baseline"));
+    EXPECT_EQ(limited.at("table1"), all.at("table1"));  // other tables keep their rows
+    EXPECT_NE(test::read_file((out / "tables.md").string())
+                  .find("Rows only for Dis-PU (`noise_backbones`"),
+              std::string::npos);
+}
+
 std::vector<std::string> evaluated_cells(const fs::path& log) {
     std::vector<std::string> cells;
     std::ifstream in(log);

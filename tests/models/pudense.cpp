@@ -106,6 +106,16 @@ TEST(PuDense, UpsampleGivesExactlyRNVoxelCentresNearTheInput) {
     }
 }
 
+TEST(PuDense, EachPatchUpsamplesTheSameAloneAsInABatch) {
+    // Why upsample_cloud may use the backbone's small inference batch without changing results.
+    at::Tensor x = test::sheet(3, 40, 5);
+    auto model = tiny_model(4);
+    at::Tensor together = model->upsample(x);
+    for (int64_t b = 0; b < 3; ++b)
+        EXPECT_TRUE(at::equal(model->upsample(x.slice(0, b, b + 1))[0], together[b])) << b;
+    EXPECT_EQ(model->inference_batch_patches(), 2);
+}
+
 TEST(PuDense, LossIsBceAgainstMembershipInTheTargetVoxels) {
     auto model = tiny_model();
     at::Tensor target = test::sheet(2, 64, 2);

@@ -6,11 +6,14 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <csignal>
+#include <filesystem>
 #include <fstream>
 #include <string>
 #include <vector>
 
 #include "pumeta/core/error.h"
+#include "pumeta/core/interrupt.h"
 #include "pumeta/data/patch_set.h"
 #include "pumeta/models/backbone.h"
 #include "pumeta/models/checkpoint.h"
@@ -19,6 +22,7 @@
 namespace pumeta {
 namespace {
 
+namespace fs = std::filesystem;
 using test::tiny_pugcn_config;
 
 /// Two "meshes" of random points with six patch seeds each, for ratio `ratio`.
@@ -81,6 +85,21 @@ TEST(Train, LogsEachTermOfALossWithSeveral) {
     std::vector<nlohmann::json> pugcn = loss_lines(dir.file("pugcn/log.jsonl"));
     ASSERT_EQ(pugcn.size(), 1u);
     for (const auto& [key, value] : pugcn[0].items()) EXPECT_NE(key.rfind("loss_", 0), 0u) << key;
+}
+
+TEST(Train, ACaughtSignalCheckpointsAndStopsAfterTheCurrentStep) {
+    test::TempDir dir;
+    TrainConfig config = tiny_config(dir, 4, "run");
+    config.steps = 30;
+    catch_interrupts();
+    std::raise(SIGTERM);  // as if Ctrl-C came during the first step
+    const int64_t stopped_at = train(config, /*resume=*/false).steps;
+    reset_interrupts();
+    std::signal(SIGINT, SIG_DFL);
+    std::signal(SIGTERM, SIG_DFL);
+    EXPECT_EQ(stopped_at, 1);
+    EXPECT_TRUE(fs::exists(config.run_dir + "/state.ckpt"));
+    EXPECT_EQ(train(config, /*resume=*/true).steps, 30);
 }
 
 TEST(Train, InitFromCopiesEveryTensorWhoseNameAndShapeMatch) {

@@ -1,5 +1,5 @@
 // pumeta: point-cloud upsampling with test-time adaptation. Exit codes: 0 success, 2 bad input
-// or usage, 1 internal failure.
+// or usage, 1 internal failure, 130 training stopped by Ctrl-C / SIGTERM after checkpointing.
 #include <ATen/Parallel.h>
 #include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
@@ -12,6 +12,7 @@
 #include "pumeta/core/allocator.h"
 #include "pumeta/core/device.h"
 #include "pumeta/core/error.h"
+#include "pumeta/core/interrupt.h"
 
 int main(int argc, char** argv) {
     pumeta::keep_freed_memory();
@@ -69,5 +70,5 @@ int main(int argc, char** argv) {
         std::fprintf(stderr, "pumeta: internal error: %s\n", message.c_str());
         return 1;
     }
-    return 0;
+    return pumeta::interrupt_requested() ? 130 : 0;
 }

@@ -2,6 +2,7 @@
 //              [--world-size W --rank R --master HOST:PORT]
 #include "pumeta/cli/commands.h"
 #include "pumeta/cli/config_file.h"
+#include "pumeta/core/interrupt.h"
 #include "pumeta/train/trainer.h"
 
 namespace pumeta::cli {
@@ -26,6 +27,7 @@ void add_train_command(CLI::App& app) {
         nlohmann::json j = read_json_file(args->config);
         apply_overrides(j, args->overrides);
         apply_distributed_args(j, args->distributed);
+        catch_interrupts();
         TrainResult result =
             train(TrainConfig::from_json(j), args->resume, args->max_minutes * 60.0);
         print_json({{"steps", result.steps},

@@ -8,6 +8,7 @@
 #include "pumeta/cli/commands.h"
 #include "pumeta/cli/config_file.h"
 #include "pumeta/core/device.h"
+#include "pumeta/core/interrupt.h"
 #include "pumeta/eval/evaluate_cases.h"
 #include "pumeta/inference/model_file.h"
 #include "pumeta/meta/meta_trainer.h"
@@ -24,7 +25,7 @@ struct ModelArgs {
     int64_t tta_steps = -1;  // -1: the model's meta-trained N, or 0
     double tta_lr = -1;      // <0: the model's meta-trained alpha
     std::string tta_unit = "object";
-    int64_t batch_patches = 64;
+    int64_t batch_patches = 0;  // the backbone's
     std::string device = "cpu";
 };
 
@@ -43,7 +44,10 @@ void add_model_options(CLI::App& command, ModelArgs& args) {
                     "object: one adaptation on the input's patches, each downsampled; patch: "
                     "one per patch; cloud: one on patches of the downsampled whole input")
         ->check(CLI::IsMember({"object", "patch", "cloud"}));
-    command.add_option("--batch-patches", args.batch_patches, "patches per forward pass")
+    command
+        .add_option("--batch-patches", args.batch_patches,
+                    "patches per forward pass (default: the backbone's fastest, 64 for PU-GCN "
+                    "and Dis-PU, 2 for PU-Dense)")
         ->check(CLI::PositiveNumber);
     command.add_option("--device", args.device, "cpu or cuda");
 }
@@ -206,6 +210,7 @@ void add_meta_train_command(CLI::App& app) {
         apply_overrides(j, args->overrides);
         if (args->first_order) j["meta"]["first_order"] = true;
         apply_distributed_args(j, args->distributed);
+        catch_interrupts();
         MetaTrainResult r =
             meta_train(MetaTrainConfig::from_json(j), args->resume, args->max_minutes * 60.0);
         print_json({{"steps", r.steps},

@@ -53,6 +53,8 @@ struct ReproduceConfig {
     std::vector<std::string> sets = {"test-indist", "test-scans", "test-aerial", "test-humans"};
     /// Noisy input variants of Table II (keys of the cases' noisy inputs).
     std::vector<std::string> noise = {"rel0.5", "rel1", "rel2"};
+    /// Backbones with Table II rows (empty = all of `backbones`).
+    std::vector<std::string> noise_backbones;
     /// N of "ours" and of "TTA without meta".
     int64_t tta_steps = 5;
     std::string tta_unit = "object";

@@ -141,9 +141,11 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
     double before_sum = 0, after_sum = 0;
     std::optional<ProgressBar> progress;
     if (options.show_progress) progress.emplace(num_patches, fmt::format("upsample x{}", r));
-    for (int64_t start = 0; start < num_patches; start += options.batch_patches) {
+    const int64_t batch =
+        options.batch_patches > 0 ? options.batch_patches : model.inference_batch_patches();
+    for (int64_t start = 0; start < num_patches; start += batch) {
         if (progress) progress->update(start, fmt::format("{} patches", num_patches));
-        int64_t end = std::min(num_patches, start + options.batch_patches);
+        int64_t end = std::min(num_patches, start + batch);
         at::Tensor chunk = patches.points.slice(0, start, end);
         if (options.tta_steps > 0 && options.tta_unit == "patch") {
             for (int64_t i = 0; i < chunk.size(0); ++i) {

@@ -17,8 +17,8 @@ struct UpsampleOptions {
     /// Output ratio; 0 = the model's. A power of the model's ratio (16 = 4 twice) applies the
     /// model repeatedly.
     int64_t ratio = 0;
-    /// Patches per forward pass (bounds memory).
-    int64_t batch_patches = 64;
+    /// Patches per forward pass (bounds memory); 0 = the backbone's inference_batch_patches().
+    int64_t batch_patches = 0;
     /// Each input point lies in about this many patches.
     double coverage = 3.0;
     /// Seed of the test-time downsampler (the only randomness of the pipeline).

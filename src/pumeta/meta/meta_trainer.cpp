@@ -12,6 +12,7 @@
 
 #include "pumeta/core/blas_check.h"
 #include "pumeta/core/error.h"
+#include "pumeta/core/interrupt.h"
 #include "pumeta/core/json_fields.h"
 #include "pumeta/core/progress.h"
 #include "pumeta/data/patch_set.h"
@@ -268,7 +269,8 @@ MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume, double st
         MetaStepResult r = meta_gradient(
             *model, batch.input, batch.gt, config.meta, step_sizes,
             config.seed * 1000003 + static_cast<uint64_t>(step) * 64 + first_task, step);
-        bool stop = stop_after_seconds > 0 && elapsed() > stop_after_seconds;
+        bool stop =
+            (stop_after_seconds > 0 && elapsed() > stop_after_seconds) || interrupt_requested();
         if (group.enabled()) all_reduce_step(group, r, stop);
         if (!std::isfinite(r.outer_loss))
             throw InternalError(
@@ -297,8 +299,8 @@ MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume, double st
             save_state();
         if (stop) {
             if (writes)
-                spdlog::info("meta-train: time limit reached at step {}; continue with --resume",
-                             step);
+                spdlog::info("meta-train: {} at step {}; checkpoint saved, continue with --resume",
+                             interrupt_requested() ? "interrupted" : "time limit reached", step);
             break;
         }
     }

@@ -61,6 +61,8 @@ struct MetaTrainResult {
     double best_cd_after = 0;
 };
 
+/// Meta-trains (or, with resume, continues the run in config.run_dir) until config.steps;
+/// stops early, after writing a checkpoint, as train() does.
 MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume,
                            double stop_after_seconds = 0);
 

@@ -41,6 +41,9 @@ class Backbone {
     virtual int64_t ratio() const = 0;
     /// Points per input patch the network is trained on (256 for PU-GCN and Dis-PU).
     virtual int64_t patch_size() const = 0;
+    /// Patches per forward pass that upsample fastest on a CPU when the caller does not say
+    /// (UpsampleOptions::batch_patches = 0). Results do not depend on it.
+    virtual int64_t inference_batch_patches() const { return 64; }
 
     /// The backbone's own parameters (leaf tensors with requires_grad = true).
     ParamMap& parameters() { return params_; }

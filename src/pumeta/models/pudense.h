@@ -74,6 +74,10 @@ class PuDense : public Backbone {
     nlohmann::json config() const override { return options_.to_json(); }
     int64_t ratio() const override { return options_.ratio; }
     int64_t patch_size() const override { return options_.patch_size; }
+    /// Small batches: a batch's generated voxels and kernel maps grow with it and first-touch
+    /// page clearing dominates. One 2,048 -> 16,384 object, compact, one thread: 9.5 s with
+    /// 64 patches per pass (2.1 GB peak RSS), 5.2 s with 8, 4.2 s with 2 (0.46 GB).
+    int64_t inference_batch_patches() const override { return 2; }
     const PuDenseOptions& options() const { return options_; }
     /// Voxel edge length h in the input frame.
     double voxel_size() const { return 1.0 / options_.resolution; }

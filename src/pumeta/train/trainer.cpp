@@ -15,6 +15,7 @@
 
 #include "pumeta/core/blas_check.h"
 #include "pumeta/core/error.h"
+#include "pumeta/core/interrupt.h"
 #include "pumeta/core/json_fields.h"
 #include "pumeta/core/progress.h"
 #include "pumeta/data/patch_set.h"
@@ -243,7 +244,8 @@ TrainResult train(const TrainConfig& config, bool resume, double stop_after_seco
         double loss_value = loss.item<double>();
         if (terms.size() > 1)
             for (const auto& [name, term] : terms) term_sums[name] += term.item<double>();
-        bool stop = stop_after_seconds > 0 && elapsed() > stop_after_seconds;
+        bool stop =
+            (stop_after_seconds > 0 && elapsed() > stop_after_seconds) || interrupt_requested();
         if (group.enabled()) all_reduce_step(group, grads, model->buffers(), loss_value, stop);
         adam.step(grads);
         ++step;
@@ -300,7 +302,8 @@ TrainResult train(const TrainConfig& config, bool resume, double stop_after_seco
         }
         if (stop) {
             if (writes)
-                spdlog::info("train: time limit reached at step {}; continue with --resume", step);
+                spdlog::info("train: {} at step {}; checkpoint saved, continue with --resume",
+                             interrupt_requested() ? "interrupted" : "time limit reached", step);
             break;
         }
     }
