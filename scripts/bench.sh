@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Benchmarks with ratios against baselines measured in the same run (medians of 5).
-#   scripts/bench.sh foundation   kNN, Chamfer, FPS, Poisson disk, PLY reading (issue: foundation)
+#   scripts/bench.sh foundation   kNN, Chamfer, FPS, Poisson disk, PLY reading (issue: foundation),
+#                                 patch extraction of a 300k-point cloud
 #   scripts/bench.sh upsample     whole-cloud 2,048 -> 8,192 upsampling, plain vs adaptation
 #   scripts/bench.sh memory       peak resident memory of `pumeta upsample` on 10k, 100k and 1M
 #                                 input points (GNU time), ratio vs the 10k run
@@ -32,6 +33,7 @@ if [[ $what == foundation || $what == all ]]; then
     run chamfer bench_metrics_chamfer 'BM_Chamfer(Pumeta/threads:1|Nanoflann)$'
     run sampling bench_geometry_sampling 'BM_(FarthestPointSampling/1|PoissonDisk/[12])/real_time'
     run io bench_geometry_io 'ReadPly/binary_le/xyz/1M'
+    run patches bench_geometry_patches '.'
     run open3d bench_reference_open3d '.'
 fi
 if [[ $what == upsample || $what == all ]]; then
@@ -102,6 +104,8 @@ if what in ("foundation", "all"):
         "BM_O3D_SamplePointsPoissonDisk/iterations:1/real_time", "Open3D")
     row("Poisson disk 100k on 49.6k triangles, 2 threads", "BM_PoissonDisk/2/real_time",
         "BM_O3D_SamplePointsPoissonDisk/iterations:1/real_time", "Open3D")
+    row("patches of 300k points, seeds per 70k part", "BM_ExtractPatchesPerPart/real_time",
+        "BM_ExtractPatchesWholeCloudFps/real_time", "whole-cloud FPS")
     ply = medians.get("ReadPly/binary_le/xyz/1M/real_time")
     if ply:
         print(f"{'read 1M-point binary PLY':46s} {ms('ReadPly/binary_le/xyz/1M/real_time'):10.2f} ms"

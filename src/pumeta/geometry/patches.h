@@ -22,10 +22,15 @@ struct PatchOptions {
     int64_t patch_size = 256;
     /// Seeds = ceil(N / n · coverage): each point lies in about `coverage` patches.
     double coverage = 3.0;
+    /// Clouds of more points pick their seeds part by part (kdtree_partition into parts of at
+    /// most this many points, seeds in proportion to each part's size): FPS over the whole
+    /// cloud costs N · seeds, quadratic in N (about 25 s for 1 M points, hours for 10 M).
+    int64_t fps_part_points = 70000;
 };
 
-/// Patches of a cloud [N,3]: seeds by farthest point sampling (from point 0), each patch the
-/// seed's n nearest neighbours. Deterministic.
+/// Patches of a cloud [N,3]: seeds by farthest point sampling (from point 0; per k-d tree part
+/// above fps_part_points), each patch the seed's n nearest neighbours in the whole cloud.
+/// Deterministic.
 Patches extract_patches(const at::Tensor& cloud, const PatchOptions& options = {});
 
 /// Maps per-patch results [P,m,3] in the patches' normalised frames back to the cloud frame.

@@ -1,4 +1,5 @@
-// PU-Dense's partition of large clouds: parts small enough for one pass of the voxel network.
+// K-d tree partition of large clouds into parts small enough for one pass of quadratic work
+// (PU-Dense's 70,000-point parts; the seed FPS of the patch pipeline).
 #pragma once
 
 #include <ATen/core/Tensor.h>

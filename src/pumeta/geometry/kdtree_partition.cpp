@@ -1,4 +1,4 @@
-#include "pumeta/models/kdtree_partition.h"
+#include "pumeta/geometry/kdtree_partition.h"
 
 #include <ATen/ATen.h>
 

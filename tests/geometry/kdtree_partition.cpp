@@ -1,5 +1,5 @@
 // The KD-tree partition of large clouds against its defining properties.
-#include "pumeta/models/kdtree_partition.h"
+#include "pumeta/geometry/kdtree_partition.h"
 
 #include <ATen/ATen.h>
 #include <gtest/gtest.h>
