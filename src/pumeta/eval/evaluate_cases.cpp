@@ -56,7 +56,7 @@ at::Tensor run_external(const std::string& command_template, const at::Tensor& i
                         const fs::path& work_dir, const std::string& name) {
     fs::create_directories(work_dir);
     fs::path in = work_dir / (name + ".in.xyz"), out = work_dir / (name + ".out.xyz");
-    write_point_cloud(in.string(), {input});
+    write_point_cloud(in.string(), PointCloud{input, {}, {}});
     std::string command = command_template;
     replace_all(command, "{input}", shell_quote(in.string()));
     replace_all(command, "{output}", shell_quote(out.string()));
@@ -182,7 +182,7 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
         if (saves(i))
             write_point_cloud(
                 (fs::path(out_dir) / "pred" / (c["name"].get<std::string>() + ".ply")).string(),
-                {result.points});
+                PointCloud{result.points, {}, {}});
         progress.update(static_cast<int64_t>(i + 1), fmt::format("CD {:.3e}", m.cd));
     }
     progress.finish();
