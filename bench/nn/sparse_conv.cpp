@@ -12,6 +12,8 @@
 #include <cmath>
 #include <random>
 
+#include "pumeta/core/allocator.h"
+
 namespace {
 
 using namespace pumeta;
@@ -117,4 +119,13 @@ BENCHMARK(BM_KernelMapBuild)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->Use
 
 }  // namespace
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) {
+    // As the CLI runs: freed memory stays in the process (core/allocator.h), for the dense
+    // baseline too.
+    pumeta::keep_freed_memory();
+    benchmark::Initialize(&argc, argv);
+    if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+    benchmark::RunSpecifiedBenchmarks();
+    benchmark::Shutdown();
+    return 0;
+}

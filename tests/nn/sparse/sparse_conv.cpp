@@ -291,6 +291,26 @@ TEST(SparseConv, BatchedAndPerOffsetPathsAgree) {
     }
 }
 
+TEST(SparseConv, WithoutGradientsRowBlocksGiveTheUnblockedResult) {
+    // 64 channels: blocks of 157 rows per offset, a few hundred sites per offset here.
+    auto fine = occupied_grid(-6, 12, 1, 62);
+    auto map = fine->conv_map(3, 1);
+    ASSERT_TRUE(map->batched_offsets.defined());
+    ASSERT_GT(map->batched_in.numel() / map->batched_offsets.numel(), 2 * 157);
+    at::manual_seed(63);
+    at::Tensor x = at::randn({map->input_size, 64});
+    at::Tensor w = at::randn({map->kernel_volume(), 64, 64});
+    at::Tensor b = at::randn({64});
+    at::Tensor blocked;
+    {
+        at::NoGradGuard no_grad;
+        blocked = apply_kernel_map(x, w, b, *map);
+    }
+    at::Tensor whole = apply_kernel_map(x, w.requires_grad_(true), b, *map);  // one block
+    ASSERT_TRUE(whole.requires_grad());
+    expect_close(blocked, whole.detach(), 1e-4);
+}
+
 TEST(SparseConv, LayersOnTheSameSitesShareOneKernelMap) {
     auto set = occupied_grid(0, 6, 1, 40);
     SparseTensor x = random_features(set, 2, 41);
