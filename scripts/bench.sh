@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Benchmarks with ratios against baselines measured in the same run (medians of 5).
 #   scripts/bench.sh foundation   kNN, Chamfer, FPS, Poisson disk, PLY reading (issue: foundation),
-#                                 patch extraction of a 300k-point cloud
+#                                 patch extraction of a 300k-point cloud, sparse convolution
 #   scripts/bench.sh upsample     whole-cloud 2,048 -> 8,192 upsampling, plain vs adaptation
 #   scripts/bench.sh memory       peak resident memory of `pumeta upsample` on 10k, 100k and 1M
 #                                 input points (GNU time), ratio vs the 10k run
@@ -34,6 +34,7 @@ if [[ $what == foundation || $what == all ]]; then
     run sampling bench_geometry_sampling 'BM_(FarthestPointSampling/1|PoissonDisk/[12])/real_time'
     run io bench_geometry_io 'ReadPly/binary_le/xyz/1M'
     run patches bench_geometry_patches '.'
+    run sparse bench_nn_sparse_conv '(SparseConv3x3x3Forward|DenseGemmSameFlops)/1/'
     run open3d bench_reference_open3d '.'
 fi
 if [[ $what == upsample || $what == all ]]; then
@@ -106,6 +107,8 @@ if what in ("foundation", "all"):
         "BM_O3D_SamplePointsPoissonDisk/iterations:1/real_time", "Open3D")
     row("patches of 300k points, seeds per 70k part", "BM_ExtractPatchesPerPart/real_time",
         "BM_ExtractPatchesWholeCloudFps/real_time", "whole-cloud FPS")
+    row("sparse conv 3^3 64->64, 99k sites, 1 thread", "BM_SparseConv3x3x3Forward/1/real_time",
+        "BM_DenseGemmSameFlops/1/real_time", "dense GEMM, same FLOPs (target <= 3x)")
     ply = medians.get("ReadPly/binary_le/xyz/1M/real_time")
     if ply:
         print(f"{'read 1M-point binary PLY':46s} {ms('ReadPly/binary_le/xyz/1M/real_time'):10.2f} ms"
