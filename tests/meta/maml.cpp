@@ -140,6 +140,32 @@ TEST(Maml, ZeroInnerStepSizeReducesToSupervisedGradient) {
     EXPECT_NEAR(result.outer_loss, result.outer_loss_before, 1e-12);
 }
 
+TEST(Maml, TasksWhoseInnerLoopDivergesAreDroppedAndTheRestAveraged) {
+    auto model = tiny_model(true);
+    Tasks tasks = tiny_tasks(3, true);
+    MetaOptions options;
+    options.inner_steps = 2;
+    options.inner_lr = 0.01;
+    MetaStepResult sane = meta_gradient(*model, tasks.x, tasks.y, options, {}, 1);
+    EXPECT_EQ(sane.dropped_tasks, 0);
+    // A step size that blows every task up: all are dropped, nothing is NaN, nothing moves.
+    options.inner_lr = 1e9;
+    MetaStepResult blown = meta_gradient(*model, tasks.x, tasks.y, options, {}, 1);
+    EXPECT_EQ(blown.dropped_tasks, 3);
+    for (const auto& [name, g] : blown.grads) EXPECT_EQ(g.abs().max().item<double>(), 0.0) << name;
+    EXPECT_EQ(blown.outer_loss, 0.0);
+    // Dropping one task of three: the mean over the other two.
+    options.inner_lr = 0.01;
+    MetaStepResult pair =
+        meta_gradient(*model, tasks.x.slice(0, 0, 2), tasks.y.slice(0, 0, 2), options, {}, 1);
+    EXPECT_NEAR(pair.outer_loss,
+                sane.outer_loss * 3 / 2 - meta_gradient(*model, tasks.x.slice(0, 2, 3),
+                                                        tasks.y.slice(0, 2, 3), options, {}, 3)
+                                                  .outer_loss /
+                                              2,
+                1e-9);
+}
+
 TEST(Maml, AdaptationLowersTheSelfSupervisedLossAndLeavesTheModelUnchanged) {
     auto model = tiny_model(false);
     Tasks tasks = tiny_tasks(1, false);

@@ -1,6 +1,11 @@
 #include "pumeta/meta/maml.h"
 
 #include <ATen/ATen.h>
+#include <fmt/ranges.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <cmath>
 
 #include "pumeta/core/error.h"
 #include "pumeta/core/json_fields.h"
@@ -104,18 +109,28 @@ MetaStepResult meta_gradient(const Backbone& model, const at::Tensor& x, const a
     for (const auto& [name, p] : theta) result.grads[name] = at::zeros_like(p.detach());
     for (const auto& [name, a] : step_sizes)
         result.step_size_grads[name] = at::zeros_like(a.detach());
+    double outer_before = 0;
     for (int64_t n = 0; n < tasks; ++n) {
         at::Tensor xn = x.slice(0, n, n + 1);
         at::Tensor yn = y.slice(0, n, n + 1);
         at::Tensor x_down = model.downsample(xn, seed + static_cast<uint64_t>(n));
-        {
-            at::NoGradGuard no_grad;
-            result.outer_loss_before += model.loss(xn, yn, theta, step).item<double>() / tasks;
-        }
         std::vector<double> inner;
         ParamMap fast = adapt(model, theta, x_down, xn, options, step_sizes,
                               /*create_graph=*/true, &inner);
-        at::Tensor outer = model.loss(xn, yn, fast, step) / static_cast<double>(tasks);
+        const bool diverged = std::any_of(inner.begin(), inner.end(), [&](double v) {
+            return !std::isfinite(v) || v > kDivergedInnerLoss * inner.front();
+        });
+        if (diverged) {
+            spdlog::warn("meta step {} task {}: inner loop diverged (loss {}), task dropped", step,
+                         n, fmt::join(inner, " -> "));
+            ++result.dropped_tasks;
+            continue;
+        }
+        {
+            at::NoGradGuard no_grad;
+            outer_before += model.loss(xn, yn, theta, step).item<double>();
+        }
+        at::Tensor outer = model.loss(xn, yn, fast, step);
         ParamMap wrt = theta;
         for (const auto& [name, a] : step_sizes) wrt["alpha/" + name] = a;
         ParamMap grads = gradients(outer, wrt);
@@ -126,8 +141,19 @@ MetaStepResult meta_gradient(const Backbone& model, const at::Tensor& x, const a
                 result.grads[name] += g;
         }
         result.outer_loss += outer.item<double>();
-        result.inner_loss_before += inner.front() / tasks;
-        result.inner_loss_after += inner.back() / tasks;
+        result.inner_loss_before += inner.front();
+        result.inner_loss_after += inner.back();
+    }
+    // Means over the tasks kept (the paper's sum differs by a constant, docs/design.md).
+    const int64_t kept = tasks - result.dropped_tasks;
+    if (kept > 0) {
+        const double scale = 1.0 / static_cast<double>(kept);
+        for (auto& [name, g] : result.grads) g.mul_(scale);
+        for (auto& [name, g] : result.step_size_grads) g.mul_(scale);
+        result.outer_loss *= scale;
+        result.outer_loss_before = outer_before * scale;
+        result.inner_loss_before *= scale;
+        result.inner_loss_after *= scale;
     }
     return result;
 }

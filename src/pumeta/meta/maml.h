@@ -67,10 +67,19 @@ struct MetaStepResult {
     double inner_loss_after = 0;   ///< ... and after the last
     ParamMap grads;                ///< d outer / d θ, named like the parameters
     ParamMap step_size_grads;      ///< d outer / d α (Meta-SGD only)
+    /// Tasks left out because their inner loop diverged; the means above are over the rest.
+    int64_t dropped_tasks = 0;
 };
 
+/// An inner loop diverged when a self-supervised loss is not finite or exceeds this factor
+/// times the loss before adaptation (one PU-Dense task in about 60 went 0.135 -> 1,799 -> NaN
+/// in two steps: batch norm over the 2-3 sites of a 32-point patch's coarsest level).
+constexpr double kDivergedInnerLoss = 10.0;
+
 /// One outer iteration's gradient over a batch of tasks x [B,N,3], y [B,rN,3], each task
-/// adapted on its own (Algorithm 1, lines 3-8). Task n's X↓ uses seed + n.
+/// adapted on its own (Algorithm 1, lines 3-8). Task n's X↓ uses seed + n. A task whose
+/// inner loop diverges (kDivergedInnerLoss) is dropped with a warning rather than poisoning
+/// the outer gradient with NaN.
 MetaStepResult meta_gradient(const Backbone& model, const at::Tensor& x, const at::Tensor& y,
                              const MetaOptions& options, const StepSizes& step_sizes, uint64_t seed,
                              int64_t step = 0);

@@ -291,6 +291,7 @@ MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume, double st
                                   {"outer_loss_before", r.outer_loss_before},
                                   {"inner_loss_before", r.inner_loss_before},
                                   {"inner_loss_after", r.inner_loss_after},
+                                  {"dropped_tasks", r.dropped_tasks},
                                   {"lr", outer.lr()},
                                   {"seconds", elapsed()},
                                   {"steps_per_second", (step - first_step) / elapsed()}});
