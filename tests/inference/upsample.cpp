@@ -72,6 +72,22 @@ TEST(UpsampleCloud, SameSeedSameOutputAndModelUnchangedByAdaptation) {
     for (auto& [name, p] : model->parameters()) EXPECT_TRUE(p.equal(before[name])) << name;
 }
 
+TEST(UpsampleCloud, ADivergedAdaptationFallsBackToThePlainModel) {
+    auto model = small_pugcn(4);
+    at::Tensor input = sphere_points(200, 4);
+    UpsampleOptions options;
+    UpsampleResult plain = upsample_cloud(*model, input, options);
+    options.tta_steps = 2;
+    options.meta.inner_lr = 1e9;
+    for (const char* unit : {"object", "patch"}) {
+        options.tta_unit = unit;
+        UpsampleResult blown = upsample_cloud(*model, input, options);
+        // (Patch units upsample one patch per pass: equal up to GEMM blocking.)
+        EXPECT_TRUE(at::allclose(blown.points, plain.points, 0, 1e-5)) << unit;
+        EXPECT_EQ(blown.loss_after, blown.loss_before) << unit;
+    }
+}
+
 TEST(UpsampleCloud, PatchUnitAdaptsEachPatch) {
     auto model = small_pugcn(4);
     UpsampleOptions options;

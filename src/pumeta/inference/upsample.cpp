@@ -107,6 +107,16 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
         std::vector<double> losses;
         ParamMap adapted = adapt(model, model.parameters(), input, target, meta, options.step_sizes,
                                  /*create_graph=*/false, &losses);
+        // A diverged adaptation (as meta-training drops, kDivergedInnerLoss) would return
+        // garbage: keep θ and say so.
+        if (!std::isfinite(losses.back()) || losses.back() > kDivergedInnerLoss * losses.front()) {
+            spdlog::warn(
+                "test-time adaptation diverged (self-supervised loss {} -> {}); using "
+                "the unadapted model; try a smaller --tta-lr",
+                losses.front(), losses.back());
+            adapted = model.parameters();
+            losses.back() = losses.front();
+        }
         return std::make_pair(adapted, losses);
     };
     auto adapt_on = [&](const at::Tensor& x, uint64_t seed) {
