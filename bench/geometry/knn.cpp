@@ -12,19 +12,14 @@
 #include <random>
 #include <vector>
 
+#include "../random_cloud.h"
+
 namespace {
 
 constexpr int64_t kPoints = 100000;
 constexpr int64_t kNeighbours = 16;
 
-at::Tensor random_cloud(int64_t n, uint64_t seed) {
-    std::mt19937_64 rng(seed);
-    std::uniform_real_distribution<float> uniform(-1.f, 1.f);
-    at::Tensor points = at::empty({n, 3}, at::kFloat);
-    float* p = points.data_ptr<float>();
-    for (int64_t i = 0; i < 3 * n; ++i) p[i] = uniform(rng);
-    return points;
-}
+using pumeta::bench::random_cloud;
 
 const at::Tensor& cloud() {
     static const at::Tensor points = random_cloud(kPoints, 1);

@@ -10,16 +10,11 @@
 #include <random>
 #include <vector>
 
+#include "../random_cloud.h"
+
 namespace {
 
-at::Tensor random_cloud(int64_t n, uint64_t seed) {
-    std::mt19937_64 rng(seed);
-    std::uniform_real_distribution<float> uniform(-1.f, 1.f);
-    at::Tensor points = at::empty({n, 3}, at::kFloat);
-    float* p = points.data_ptr<float>();
-    for (int64_t i = 0; i < 3 * n; ++i) p[i] = uniform(rng);
-    return points;
-}
+using pumeta::bench::random_cloud;
 
 /// Unit UV sphere: `rings` latitude bands, `sectors` longitude bands, two pole vertices;
 /// 2 * sectors * (rings - 1) triangles.
