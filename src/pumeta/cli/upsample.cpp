@@ -72,8 +72,8 @@ UpsampleOptions make_upsample_options(const ModelArgs& args, const InferenceMode
 
 InferenceModel load_model(const ModelArgs& args) {
     std::string device = parse_device(args.device);
-    InferenceModel model =
-        load_inference_model(args.model.empty() ? default_model_for_ratio(args.ratio) : args.model);
+    InferenceModel model = load_inference_model(
+        args.model.empty() ? default_model_for_ratio(args.ratio) : args.model, args.ratio);
     model.backbone->to(device);
     return model;
 }

@@ -25,6 +25,7 @@
 #include "pumeta/eval/paired_stats.h"
 #include "pumeta/geometry/io/file.h"
 #include "pumeta/inference/model_file.h"
+#include "pumeta/models/checkpoint.h"
 
 namespace pumeta {
 
@@ -182,11 +183,18 @@ class Runner {
     }
 
     /// The checkpoint of a backbone at a ratio: <bb>-x<r>[-meta].pt, else a model of a smaller
-    /// ratio that the pipeline can apply repeatedly (16× = 4× twice).
+    /// ratio that the pipeline can apply repeatedly (16× = 4× twice), else the main ratio's
+    /// model when its weights serve any ratio (PU-Dense; load_inference_model rebuilds it).
     std::optional<std::string> model_file(const std::string& backbone, int64_t ratio,
                                           bool meta) const {
-        std::string file =
-            model_file_for_ratio(config_.models_dir, backbone, ratio, meta ? "-meta" : "");
+        const std::string suffix = meta ? "-meta" : "";
+        std::string file = model_file_for_ratio(config_.models_dir, backbone, ratio, suffix);
+        if (file.empty()) {
+            std::string main =
+                model_file_for_ratio(config_.models_dir, backbone, config_.main_ratio, suffix);
+            if (!main.empty() && !load_checkpoint(main).backbone->config_for_ratio(ratio).is_null())
+                file = main;
+        }
         if (file.empty()) return std::nullopt;
         return file;
     }
@@ -237,7 +245,7 @@ class Runner {
             InferenceModel model;
             if (spec.method == "zero-shot") model = load_inference_model(spec.model);
             if (spec.method == "network") {
-                model = load_inference_model(spec.model);
+                model = load_inference_model(spec.model, spec.ratio);
                 set_adaptation(options.upsample, model, spec.tta_lr);
             }
             options.upsample.seed = config_.seed;
@@ -714,7 +722,12 @@ nlohmann::json tables_pass(const ReproduceConfig& config, Runner& runner,
         for (int64_t ratio : config.table3_ratios) groups.push_back(std::to_string(ratio) + "×");
         md << "## Table III: other ratios on " << set << "\n\n"
            << "A ratio without a native model uses a smaller-ratio model repeatedly (16× = 4× "
-              "twice; adaptation then runs in each pass).\n\n";
+              "twice; adaptation then runs in each pass), or, for a backbone whose weights serve "
+              "any ratio (PU-Dense keeps the rN likeliest voxels), the "
+           << r
+           << "× model with "
+              "patches of (its patch size)·"
+           << r << "/r input points.\n\n";
         std::vector<TableWriter::Row> rows;
         TableWriter::Row midpoint{"midpoint baseline", {}, {}};
         for (int64_t ratio : config.table3_ratios)

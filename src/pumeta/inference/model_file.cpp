@@ -1,5 +1,7 @@
 #include "pumeta/inference/model_file.h"
 
+#include <ATen/ATen.h>
+
 #include <cstdlib>
 #include <filesystem>
 
@@ -7,10 +9,30 @@
 
 namespace pumeta {
 
-InferenceModel load_inference_model(const std::string& path) {
+namespace {
+
+/// `backbone` rebuilt for `ratio` with the same parameters and buffers, when its weights serve
+/// that ratio; else `backbone` itself.
+std::unique_ptr<Backbone> at_ratio(std::unique_ptr<Backbone> backbone, int64_t ratio) {
+    if (ratio <= 0 || ratio == backbone->ratio()) return backbone;
+    nlohmann::json config = backbone->config_for_ratio(ratio);
+    if (config.is_null()) return backbone;
+    std::unique_ptr<Backbone> rebuilt = make_backbone(config);
+    at::NoGradGuard no_grad;
+    auto copy = [](ParamMap& to, const ParamMap& from) {
+        for (auto& [name, tensor] : to) tensor.copy_(param(from, name));
+    };
+    copy(rebuilt->parameters(), backbone->parameters());
+    copy(rebuilt->buffers(), backbone->buffers());
+    return rebuilt;
+}
+
+}  // namespace
+
+InferenceModel load_inference_model(const std::string& path, int64_t ratio) {
     LoadedCheckpoint checkpoint = load_checkpoint(path);
     InferenceModel model;
-    model.backbone = std::move(checkpoint.backbone);
+    model.backbone = at_ratio(std::move(checkpoint.backbone), ratio);
     model.extra = checkpoint.extra;
     if (model.extra.is_object() && model.extra.contains("meta")) {
         model.meta_trained = true;

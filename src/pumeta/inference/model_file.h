@@ -21,7 +21,10 @@ struct InferenceModel {
     nlohmann::json extra;
 };
 
-InferenceModel load_inference_model(const std::string& path);
+/// Loads a checkpoint. With ratio > 0 and a backbone whose weights serve any ratio
+/// (Backbone::config_for_ratio, e.g. PU-Dense) the network is rebuilt for that ratio; other
+/// backbones keep their own ratio (the pipeline applies them repeatedly or names the problem).
+InferenceModel load_inference_model(const std::string& path, int64_t ratio = 0);
 
 /// Adaptation settings of `model` in `options` (meta options and learned step sizes), or, when
 /// inner_lr >= 0, one plain step size in place of the learned ones. tta_steps is left alone.

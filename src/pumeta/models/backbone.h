@@ -39,6 +39,10 @@ class Backbone {
     virtual nlohmann::json config() const = 0;
     /// Upsampling ratio r.
     virtual int64_t ratio() const = 0;
+    /// The config of this network at another ratio that the same weights serve (make_backbone
+    /// of it + these parameters and buffers), or null when the weights are tied to their ratio
+    /// (the default: PU-GCN's and Dis-PU's expansion layers are).
+    virtual nlohmann::json config_for_ratio(int64_t ratio) const { return nullptr; }
     /// Points per input patch the network is trained on (256 for PU-GCN and Dis-PU).
     virtual int64_t patch_size() const = 0;
     /// Patches per forward pass that upsample fastest on a CPU when the caller does not say

@@ -332,6 +332,16 @@ at::Tensor PuDense::loss(const at::Tensor& input, const at::Tensor& target, cons
     return options_.loss_scale * bce;
 }
 
+nlohmann::json PuDense::config_for_ratio(int64_t ratio) const {
+    if (ratio < 1) throw_input_error("pudense ratio", "{} is not a ratio >= 1", ratio);
+    PuDenseOptions options = options_;
+    options.ratio = ratio;
+    // Round to nearest, at least one point per patch.
+    options.patch_size =
+        std::max<int64_t>(1, (options_.patch_size * options_.ratio + ratio / 2) / ratio);
+    return options.to_json();
+}
+
 at::Tensor PuDense::downsample(const at::Tensor& dense, uint64_t seed) const {
     check_batched_points(dense, "pudense downsample");
     return downsample_points(dense, std::max<int64_t>(1, dense.size(1) / options_.ratio),

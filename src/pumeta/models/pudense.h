@@ -73,6 +73,10 @@ class PuDense : public Backbone {
     std::string name() const override { return "pudense"; }
     nlohmann::json config() const override { return options_.to_json(); }
     int64_t ratio() const override { return options_.ratio; }
+    /// Any ratio: the output keeps the r·N most likely voxels. The patch size becomes
+    /// patch_size·ratio()/r so that each patch still yields as many points (and voxels) as
+    /// the model was trained to produce (docs/design.md).
+    nlohmann::json config_for_ratio(int64_t ratio) const override;
     int64_t patch_size() const override { return options_.patch_size; }
     /// Small batches: a batch's generated voxels and kernel maps grow with it and first-touch
     /// page clearing dominates. One 2,048 -> 16,384 object, compact, one thread: 9.5 s with
