@@ -166,6 +166,53 @@ TEST(Maml, TasksWhoseInnerLoopDivergesAreDroppedAndTheRestAveraged) {
                 1e-9);
 }
 
+// Two "ranks" combined as data-parallel meta-training does (packets summed element-wise).
+MetaStepResult combine(const MetaStepResult& a, const MetaStepResult& b, bool* stop) {
+    ParamMap pa = pack_step_sum(a, false), pb = pack_step_sum(b, true), summed;
+    for (const auto& [name, t] : pa) summed[name] = t + pb.at(name);
+    MetaStepResult out = a;
+    *stop = unpack_step_sum(summed, out);
+    return out;
+}
+
+TEST(Maml, RanksCombineIntoTheWholeBatchsMeansOverKeptTasks) {
+    auto model = tiny_model(true);
+    Tasks tasks = tiny_tasks(3, true);
+    MetaOptions options;
+    options.inner_steps = 2;
+    options.inner_lr = 0.01;
+    MetaStepResult whole = meta_gradient(*model, tasks.x, tasks.y, options, {}, 1);
+    MetaStepResult first =
+        meta_gradient(*model, tasks.x.slice(0, 0, 2), tasks.y.slice(0, 0, 2), options, {}, 1);
+    MetaStepResult last =
+        meta_gradient(*model, tasks.x.slice(0, 2, 3), tasks.y.slice(0, 2, 3), options, {}, 3);
+    bool stop = false;
+    MetaStepResult combined = combine(first, last, &stop);
+    EXPECT_TRUE(stop);  // one rank asked
+    EXPECT_EQ(combined.tasks, 3);
+    EXPECT_EQ(combined.dropped_tasks, 0);
+    EXPECT_NEAR(combined.outer_loss, whole.outer_loss, 1e-12);
+    EXPECT_NEAR(combined.inner_loss_after, whole.inner_loss_after, 1e-12);
+    for (const auto& [name, g] : whole.grads)
+        EXPECT_LT((combined.grads.at(name) - g).abs().max().item<double>(),
+                  1e-12 * (g.abs().max().item<double>() + 1e-12))
+            << name;
+    // A rank whose one task diverged counts for nothing (an average of the ranks' means would
+    // halve the other rank's gradient).
+    options.inner_lr = 1e9;
+    MetaStepResult blown =
+        meta_gradient(*model, tasks.x.slice(0, 2, 3), tasks.y.slice(0, 2, 3), options, {}, 3);
+    ASSERT_EQ(blown.dropped_tasks, 1);
+    combined = combine(first, blown, &stop);
+    EXPECT_EQ(combined.tasks, 3);
+    EXPECT_EQ(combined.dropped_tasks, 1);
+    EXPECT_NEAR(combined.outer_loss, first.outer_loss, 1e-12);
+    for (const auto& [name, g] : first.grads)
+        EXPECT_LT((combined.grads.at(name) - g).abs().max().item<double>(),
+                  1e-12 * (g.abs().max().item<double>() + 1e-12))
+            << name;
+}
+
 TEST(Maml, AdaptationLowersTheSelfSupervisedLossAndLeavesTheModelUnchanged) {
     auto model = tiny_model(false);
     Tasks tasks = tiny_tasks(1, false);

@@ -106,6 +106,7 @@ MetaStepResult meta_gradient(const Backbone& model, const at::Tensor& x, const a
     const ParamMap& theta = model.parameters();
     int64_t tasks = x.size(0);
     MetaStepResult result;
+    result.tasks = tasks;
     for (const auto& [name, p] : theta) result.grads[name] = at::zeros_like(p.detach());
     for (const auto& [name, a] : step_sizes)
         result.step_size_grads[name] = at::zeros_like(a.detach());
@@ -156,6 +157,39 @@ MetaStepResult meta_gradient(const Backbone& model, const at::Tensor& x, const a
         result.inner_loss_after *= scale;
     }
     return result;
+}
+
+ParamMap pack_step_sum(const MetaStepResult& result, bool stop) {
+    const double kept = static_cast<double>(result.tasks - result.dropped_tasks);
+    const at::Tensor& like = result.grads.begin()->second;
+    auto scalar = [&like](double v) { return at::scalar_tensor(v, like.options()); };
+    ParamMap packet;
+    for (const auto& [name, g] : result.grads) packet[name] = g * kept;
+    for (const auto& [name, g] : result.step_size_grads) packet["alpha/" + name] = g * kept;
+    packet["~outer_loss"] = scalar(result.outer_loss * kept);
+    packet["~outer_loss_before"] = scalar(result.outer_loss_before * kept);
+    packet["~inner_loss_before"] = scalar(result.inner_loss_before * kept);
+    packet["~inner_loss_after"] = scalar(result.inner_loss_after * kept);
+    packet["~tasks"] = scalar(static_cast<double>(result.tasks));
+    packet["~dropped_tasks"] = scalar(static_cast<double>(result.dropped_tasks));
+    packet["~stop"] = scalar(stop ? 1 : 0);
+    return packet;
+}
+
+bool unpack_step_sum(const ParamMap& summed, MetaStepResult& result) {
+    auto value = [&summed](const std::string& name) { return param(summed, name).item<double>(); };
+    result.tasks = std::llround(value("~tasks"));
+    result.dropped_tasks = std::llround(value("~dropped_tasks"));
+    const int64_t kept = result.tasks - result.dropped_tasks;
+    // Every task dropped everywhere: zero gradients, as meta_gradient() gives.
+    const double scale = kept > 0 ? 1.0 / static_cast<double>(kept) : 0.0;
+    for (auto& [name, g] : result.grads) g = param(summed, name) * scale;
+    for (auto& [name, g] : result.step_size_grads) g = param(summed, "alpha/" + name) * scale;
+    result.outer_loss = value("~outer_loss") * scale;
+    result.outer_loss_before = value("~outer_loss_before") * scale;
+    result.inner_loss_before = value("~inner_loss_before") * scale;
+    result.inner_loss_after = value("~inner_loss_after") * scale;
+    return value("~stop") > 0;
 }
 
 }  // namespace pumeta

@@ -69,7 +69,17 @@ struct MetaStepResult {
     ParamMap step_size_grads;      ///< d outer / d α (Meta-SGD only)
     /// Tasks left out because their inner loop diverged; the means above are over the rest.
     int64_t dropped_tasks = 0;
+    /// Tasks in the batch, dropped ones included.
+    int64_t tasks = 0;
 };
+
+/// Data-parallel meta-training's collective, split so that it can be checked without
+/// processes: pack_step_sum() turns one rank's result into sums over its kept tasks (and its
+/// stop wish), the ranks' packets are summed element-wise, and unpack_step_sum() turns the sum
+/// back into means over all ranks' kept tasks (dropped and task counts summed), i.e. what
+/// meta_gradient() returns for the whole batch. Returns whether any rank wants to stop.
+ParamMap pack_step_sum(const MetaStepResult& result, bool stop);
+bool unpack_step_sum(const ParamMap& summed, MetaStepResult& result);
 
 /// An inner loop diverged when a self-supervised loss is not finite or exceeds this factor
 /// times the loss before adaptation (one PU-Dense task in about 60 went 0.135 -> 1,799 -> NaN

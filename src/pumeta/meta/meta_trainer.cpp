@@ -110,26 +110,11 @@ AdaptationScore score_adaptation(const Backbone& model, const ValidationSet& val
             totals["inner_before"].item<double>(), totals["inner_after"].item<double>()};
 }
 
-/// Averages one outer step over the ranks in one collective: the gradients, the losses for
-/// the log, and whether any rank wants to stop (so that all stop at the same step).
+/// Combines one outer step over the ranks in one collective: the gradients and losses as
+/// means over every rank's kept tasks (a rank that dropped tasks weighs less), the dropped
+/// tasks summed, and whether any rank wants to stop (so that all stop at the same step).
 void all_reduce_step(ProcessGroup& group, MetaStepResult& r, bool& stop) {
-    const at::Tensor& like = r.grads.begin()->second;
-    auto scalar = [&like](double v) { return at::scalar_tensor(v, like.options()); };
-    ParamMap packet = r.grads;
-    for (const auto& [name, g] : r.step_size_grads) packet["alpha/" + name] = g;
-    packet["~outer_loss"] = scalar(r.outer_loss);
-    packet["~outer_loss_before"] = scalar(r.outer_loss_before);
-    packet["~inner_loss_before"] = scalar(r.inner_loss_before);
-    packet["~inner_loss_after"] = scalar(r.inner_loss_after);
-    packet["~stop"] = scalar(stop ? 1 : 0);
-    ParamMap mean = group.average(packet);
-    for (auto& [name, g] : r.grads) g = mean.at(name);
-    for (auto& [name, g] : r.step_size_grads) g = mean.at("alpha/" + name);
-    r.outer_loss = mean.at("~outer_loss").item<double>();
-    r.outer_loss_before = mean.at("~outer_loss_before").item<double>();
-    r.inner_loss_before = mean.at("~inner_loss_before").item<double>();
-    r.inner_loss_after = mean.at("~inner_loss_after").item<double>();
-    stop = mean.at("~stop").item<double>() > 0;
+    stop = unpack_step_sum(group.sum(pack_step_sum(r, stop)), r);
 }
 
 void append_log(const fs::path& file, const nlohmann::json& record) {
