@@ -199,11 +199,23 @@ class Runner {
         return file;
     }
 
+    /// The cell of `spec`, evaluated or reused; a placeholder without results while another
+    /// process holds its lock (deferred()).
     const RunResult& get(const RunSpec& spec) {
         std::string key = spec.directory();
         auto found = done_.find(key);
         if (found != done_.end()) return found->second;
-        RunResult& result = done_[key];
+        std::optional<RunResult> result = evaluate_or_reuse(key, spec);
+        if (!result) {  // another process evaluates it: come back in a later pass
+            ++deferred_;
+            return deferred_result_;
+        }
+        return done_.emplace(key, std::move(*result)).first->second;
+    }
+
+  private:
+    std::optional<RunResult> evaluate_or_reuse(const std::string& key, const RunSpec& spec) {
+        RunResult result;
         result.dir = "runs/" + key;
         fs::path dir = out_dir_ / "runs" / key;
         fs::path cases = cases_dir(spec.set, spec.ratio);
@@ -222,11 +234,7 @@ class Runner {
         std::optional<CellLock> lock;
         if (!reusable()) {
             lock = CellLock::try_claim(fs::path(dir.string() + ".lock"));
-            if (!lock) {  // another process evaluates it: come back in a later pass
-                ++deferred_;
-                done_.erase(key);
-                return deferred_result_;
-            }
+            if (!lock) return std::nullopt;
         }
         ++count_;
         if (lock && !reusable()) {
@@ -298,6 +306,7 @@ class Runner {
         return identities_.emplace(key, std::move(identity)).first->second;
     }
 
+  public:
     /// Cells skipped in this pass because another process holds their lock; reset by
     /// start_pass().
     int64_t deferred() const { return deferred_; }
