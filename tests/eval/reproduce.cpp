@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <fstream>
 #include <set>
+#include <sstream>
 #include <string>
 #include <vector>
 
@@ -157,6 +158,63 @@ TEST_F(ReproduceTest, ASecondRunReusesUnchangedEvaluationsAndRedoesChangedModels
     fs::copy_file(saved, models / "pugcn-x4.pt", fs::copy_options::overwrite_existing);
     EXPECT_NE(fs::last_write_time(plain_csv), plain_time);
     EXPECT_EQ(fs::last_write_time(zero_shot_csv), zero_shot_time);
+}
+
+TEST_F(ReproduceTest, AnInterruptedCellResumesAfterItsLastFinishedCase) {
+    fs::path out = dir_->path() / "interrupted";
+    reproduce(config(), out.string(), "test");
+    fs::path cell = out / "runs/test-indist-x4/pugcn-x4";
+    // cases.csv, its rows without the timing (field 7), which differs from run to run.
+    auto cases_csv = [&] {
+        std::vector<std::string> lines;
+        std::ifstream in(cell / "cases.csv");
+        for (std::string line; std::getline(in, line);) {
+            if (lines.empty()) {
+                lines.push_back(line);
+                continue;
+            }
+            size_t at = 0;
+            for (int comma = 0; comma < 7; ++comma) at = line.find(',', at) + 1;
+            lines.push_back(line.erase(at, line.find(',', at) - at));
+        }
+        return lines;
+    };
+    const std::vector<std::string> lines = cases_csv();
+    ASSERT_EQ(lines.size(), 2u);  // header + the set's one case
+    // The case's row marked by a CD no evaluation gives (and with its timing column blank).
+    std::string marked = lines[1];
+    size_t cd_at = 0;
+    for (int comma = 0; comma < 3; ++comma) cd_at = marked.find(',', cd_at) + 1;
+    marked.replace(cd_at, marked.find(',', cd_at) - cd_at, "0.5");
+    // Interrupted with `tail` after the header; spec.partial.json = the cell's identity.
+    auto interrupt = [&](const std::string& tail, const nlohmann::json& identity) {
+        std::ofstream(cell / "cases.csv.tmp") << lines[0] << "\n" << tail;
+        fs::remove(cell / "cases.csv");
+        fs::remove(cell / "summary.json");
+        fs::remove(cell / "spec.json");
+        std::ofstream(cell / "spec.partial.json") << identity.dump();
+    };
+    const nlohmann::json identity = read_json(cell / "spec.json");
+
+    // The finished row is kept, not evaluated again.
+    interrupt(marked + "\n", identity);
+    reproduce(config(), out.string(), "test");
+    EXPECT_EQ(cases_csv(), (std::vector<std::string>{lines[0], marked}));
+    EXPECT_NEAR(read_json(cell / "summary.json").at("cd").at("mean").get<double>(), 0.5, 1e-12);
+    EXPECT_FALSE(fs::exists(cell / "spec.partial.json"));
+    EXPECT_EQ(read_json(cell / "spec.json"), identity);
+
+    // A row cut short by the interruption (no newline) is evaluated again.
+    interrupt(marked.substr(0, marked.size() - 1), identity);
+    reproduce(config(), out.string(), "test");
+    EXPECT_EQ(cases_csv(), lines);
+
+    // A partial cell of other settings (here another seed) starts afresh.
+    nlohmann::json other = identity;
+    other["seed"] = 12345;
+    interrupt(marked + "\n", other);
+    reproduce(config(), out.string(), "test");
+    EXPECT_EQ(cases_csv(), lines);
 }
 
 TEST_F(ReproduceTest, NoiseBackbonesLimitTableTwoToTheBackbonesListed) {

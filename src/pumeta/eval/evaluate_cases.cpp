@@ -8,6 +8,9 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
+#include <map>
+#include <sstream>
 
 #include "pumeta/core/error.h"
 #include "pumeta/core/progress.h"
@@ -38,6 +41,35 @@ struct Stats {
 };
 
 std::string csv_number(double v) { return std::isfinite(v) ? fmt::format("{:.9g}", v) : ""; }
+
+const char* const kCsvHeader =
+    "case,n_in,n_out,cd,hd,p2f,psnr,seconds,tta_seconds,loss_before,loss_after";
+constexpr size_t kCsvFields = 11;
+
+/// The complete rows of an interrupted run's cases.csv.tmp (a last line cut short by the
+/// interruption is dropped): case name -> the row's fields.
+std::map<std::string, std::vector<std::string>> read_finished_rows(const fs::path& file) {
+    std::map<std::string, std::vector<std::string>> rows;
+    std::ifstream in(file);
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    size_t start = text.find('\n');  // after the header
+    if (text.compare(0, start, kCsvHeader) != 0) return rows;
+    while (start != std::string::npos && start + 1 < text.size()) {
+        size_t end = text.find('\n', start + 1);
+        if (end == std::string::npos) break;  // no newline: an unfinished row
+        std::vector<std::string> fields;
+        std::stringstream row(text.substr(start + 1, end - start - 1));
+        for (std::string field; std::getline(row, field, ',');) fields.push_back(field);
+        fields.resize(kCsvFields);  // getline drops trailing empty fields
+        rows[fields[0]] = fields;
+        start = end;
+    }
+    return rows;
+}
+
+double csv_value(const std::string& field) {
+    return field.empty() ? std::nan("") : std::stod(field);
+}
 
 std::string shell_quote(const std::string& text) {
     std::string quoted = "'";
@@ -104,14 +136,37 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
     std::vector<nlohmann::json> cases = index.at("cases").get<std::vector<nlohmann::json>>();
     if (options.max_cases > 0 && static_cast<int64_t>(cases.size()) > options.max_cases)
         cases.resize(options.max_cases);
-    std::string csv_tmp = (fs::path(out_dir) / "cases.csv.tmp").string();
+    fs::path csv_tmp = fs::path(out_dir) / "cases.csv.tmp";
+    std::map<std::string, std::vector<std::string>> finished;
+    if (options.resume && fs::exists(csv_tmp)) finished = read_finished_rows(csv_tmp);
     std::ofstream csv(csv_tmp);
-    csv << "case,n_in,n_out,cd,hd,p2f,psnr,seconds,tta_seconds,loss_before,loss_after\n";
+    csv << kCsvHeader << "\n";
     Stats cd, hd, p2f, psnr, seconds, tta_seconds, loss_before, loss_after;
     int64_t improved_inner = 0;
+    auto add_row = [&](const std::vector<std::string>& row) {
+        csv << row[0];
+        for (size_t f = 1; f < row.size(); ++f) csv << "," << row[f];
+        csv << "\n" << std::flush;  // row by row: an interrupted run resumes after it
+        cd.add(csv_value(row[3]));
+        hd.add(csv_value(row[4]));
+        p2f.add(csv_value(row[5]));
+        psnr.add(csv_value(row[6]));
+        seconds.add(csv_value(row[7]));
+        tta_seconds.add(csv_value(row[8]));
+        loss_before.add(csv_value(row[9]));
+        loss_after.add(csv_value(row[10]));
+        if (csv_value(row[10]) < csv_value(row[9])) ++improved_inner;
+    };
     ProgressBar progress(static_cast<int64_t>(cases.size()), "eval");
+    int64_t resumed = 0;
     for (size_t i = 0; i < cases.size(); ++i) {
         const nlohmann::json& c = cases[i];
+        auto done = finished.find(c.at("name").get<std::string>());
+        if (done != finished.end()) {
+            add_row(done->second);
+            ++resumed;
+            continue;
+        }
         fs::path dir = fs::path(cases_dir) / c.at("name").get<std::string>();
         std::string input_file = "input.ply";
         if (!options.noise.empty()) {
@@ -162,23 +217,13 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
             result.seconds =
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         MetricReport m = evaluate(result.points, gt, has_mesh ? &mesh : nullptr);
-        double p2f_value = m.p2f ? *m.p2f : std::nan("");
-        cd.add(m.cd);
-        hd.add(m.hd);
-        p2f.add(p2f_value);
-        psnr.add(m.psnr);
-        seconds.add(result.seconds);
         // Adaptation time, or the zero-shot model's training time.
         bool trains = options.upsample.tta_steps > 0 || options.method == "zero-shot";
-        tta_seconds.add(trains ? result.tta_seconds : std::nan(""));
-        loss_before.add(result.loss_before);
-        loss_after.add(result.loss_after);
-        if (result.loss_after < result.loss_before) ++improved_inner;
-        csv << c["name"].get<std::string>() << "," << input.size(0) << "," << m.n_pred << ","
-            << csv_number(m.cd) << "," << csv_number(m.hd) << "," << csv_number(p2f_value) << ","
-            << csv_number(m.psnr) << "," << csv_number(result.seconds) << ","
-            << csv_number(trains ? result.tta_seconds : std::nan("")) << ","
-            << csv_number(result.loss_before) << "," << csv_number(result.loss_after) << "\n";
+        add_row({c["name"].get<std::string>(), std::to_string(input.size(0)),
+                 std::to_string(m.n_pred), csv_number(m.cd), csv_number(m.hd),
+                 csv_number(m.p2f ? *m.p2f : std::nan("")), csv_number(m.psnr),
+                 csv_number(result.seconds), csv_number(trains ? result.tta_seconds : std::nan("")),
+                 csv_number(result.loss_before), csv_number(result.loss_after)});
         if (saves(i))
             write_point_cloud(
                 (fs::path(out_dir) / "pred" / (c["name"].get<std::string>() + ".ply")).string(),
@@ -186,6 +231,9 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
         progress.update(static_cast<int64_t>(i + 1), fmt::format("CD {:.3e}", m.cd));
     }
     progress.finish();
+    if (resumed > 0)
+        spdlog::info("eval: {} of {} cases taken from the interrupted run in {}", resumed,
+                     cases.size(), out_dir);
     csv.close();
     fs::rename(csv_tmp, fs::path(out_dir) / "cases.csv");
     fs::remove_all(fs::path(out_dir) / "external");

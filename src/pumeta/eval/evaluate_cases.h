@@ -34,11 +34,17 @@ struct EvalOptions {
     ZeroShotOptions zero_shot;
     /// Recorded in the summary.
     std::string command_line;
+    /// Continue an interrupted evaluation of the same cases with the same options (the caller
+    /// vouches for that: `pumeta reproduce` compares the cell's identity): the complete rows
+    /// of out_dir/cases.csv.tmp are kept and their cases skipped. Without it out_dir's rows
+    /// are started afresh.
+    bool resume = false;
 };
 
 /// cases_dir: a cases/<set>/x<r> directory holding cases.json. model may be null unless the
 /// method is "network" or "zero-shot". Returns the summary (also written to out_dir/summary.json;
-/// per-case rows to out_dir/cases.csv).
+/// per-case rows to out_dir/cases.csv, written row by row to out_dir/cases.csv.tmp until the
+/// last case, so that an interrupted run can resume).
 nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* model,
                               const EvalOptions& options, const std::string& out_dir);
 

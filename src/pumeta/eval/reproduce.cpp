@@ -238,9 +238,20 @@ class Runner {
         }
         ++count_;
         if (lock && !reusable()) {
-            spdlog::info("reproduce: [{}] evaluating {}", count_, key);
-            fs::remove_all(dir);
+            // spec.partial.json marks a cell begun with this identity: an interrupted
+            // evaluation resumes after its last finished case.
+            fs::path partial_spec = dir / "spec.partial.json";
+            bool resume =
+                fs::exists(partial_spec) &&
+                nlohmann::json::parse(std::ifstream(partial_spec), nullptr, false) == identity;
+            spdlog::info("reproduce: [{}] {} {}", count_, resume ? "resuming" : "evaluating", key);
+            if (!resume) {
+                fs::remove_all(dir);
+                fs::create_directories(dir);
+                std::ofstream(partial_spec) << identity.dump(2) << "\n";
+            }
             EvalOptions options;
+            options.resume = resume;
             options.method = spec.method;
             options.external_command = spec.command;
             options.noise = spec.noise;
@@ -267,7 +278,7 @@ class Runner {
                 spdlog::warn("reproduce: {}: {}", key, result.error);
                 return result;
             }
-            std::ofstream(spec_file) << identity.dump(2) << "\n";
+            fs::rename(partial_spec, spec_file);
         } else {
             spdlog::info("reproduce: [{}] reusing {}", count_, key);
         }
