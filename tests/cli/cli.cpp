@@ -8,6 +8,7 @@
 
 #include "pumeta/data/patch_set.h"
 #include "pumeta/geometry/io.h"
+#include "pumeta/models/checkpoint.h"
 #include "pumeta/train/trainer.h"
 #include "support/test_util.h"
 
@@ -87,6 +88,33 @@ TEST(Cli, InfoJsonAndSample) {
     auto too_many =
         test::run_cli({"sample", dir.file("cube.off"), "-n", "0", "-o", dir.file("t.ply")});
     EXPECT_EQ(too_many.exit_code, 2);
+}
+
+TEST(Cli, PuDenseUpsamplesAtAnyRatioAndRatioBoundModelsSayWhy) {
+    test::TempDir dir;
+    save_checkpoint(dir.file("pudense.pt"), *make_backbone({{"backbone", "pudense"},
+                                                            {"ratio", 8},
+                                                            {"channels", {4, 4, 8, 8, 8}},
+                                                            {"resolution", 4},
+                                                            {"patch_size", 32},
+                                                            {"seed", 3}}));
+    save_checkpoint(dir.file("pugcn.pt"), *make_backbone(test::tiny_pugcn_config(4, 1)));
+    write_point_cloud(dir.file("in.ply"), {test::random_points(60, 1)});
+    auto info = test::run_cli({"info", dir.file("pudense.pt"), "--json"});
+    ASSERT_EQ(info.exit_code, 0) << info.err;
+    EXPECT_EQ(nlohmann::json::parse(info.out)["any_ratio"], true);
+    auto r = test::run_cli({"upsample", dir.file("in.ply"), "-o", dir.file("out.ply"), "--model",
+                            dir.file("pudense.pt"), "--ratio", "3"});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_EQ(read_point_cloud(dir.file("out.ply")).size(), 180);
+
+    info = test::run_cli({"info", dir.file("pugcn.pt"), "--json"});
+    EXPECT_EQ(nlohmann::json::parse(info.out)["any_ratio"], false);
+    r = test::run_cli({"upsample", dir.file("in.ply"), "-o", dir.file("out3.ply"), "--model",
+                       dir.file("pugcn.pt"), "--ratio", "3"});
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("not a power of the model's ratio 4"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir.file("out3.ply")));
 }
 
 TEST(Cli, UnknownDeviceIsAnInputError) {

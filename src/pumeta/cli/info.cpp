@@ -49,6 +49,8 @@ nlohmann::json model_info(const std::string& path) {
                            {"kind", "model"},
                            {"backbone", model.backbone->name()},
                            {"ratio", model.backbone->ratio()},
+                           // Whether --ratio may differ from "ratio" without repeating passes.
+                           {"any_ratio", !model.backbone->config_for_ratio(2).is_null()},
                            {"parameters", count_parameters(model.backbone->parameters())},
                            {"config", model.backbone->config()},
                            {"meta_trained", model.meta_trained}};
