@@ -7,7 +7,8 @@
 #   scripts/tta-val-objects.sh models/pugcn-x4.pt cloud 5 0.01 0.1 0.3
 #   scripts/tta-val-objects.sh models/pugcn-x4-meta.pt object 5 learned   # Meta-SGD sizes
 # "plain" is the same model without adaptation (for a meta-trained model: its own weights).
-# MAX_CASES=N limits the objects (default: all 40); THREADS (default 1).
+# MAX_CASES=N limits the objects (default: all 40); THREADS (default 1); TTA_ARGS: more
+# options of every adapted run, e.g. TTA_ARGS="--tta-downsampler fps".
 set -euo pipefail
 cd "$(dirname "$0")/.."
 model=$1 unit=$2 steps=$3
@@ -30,7 +31,8 @@ printf '%-8s %-8s %-12s %-12s %-22s %s\n' unit alpha "CD" change "inner loss" "o
 for alpha in "$@"; do
     lr=(--tta-lr "$alpha")
     [ "$alpha" = learned ] && lr=()
-    run "a$alpha" --tta-steps "$steps" "${lr[@]}" --tta-unit "$unit"
+    # shellcheck disable=SC2086  # TTA_ARGS is a list of options
+    run "a$alpha" --tta-steps "$steps" "${lr[@]}" --tta-unit "$unit" ${TTA_ARGS:-}
     python3 - "$unit" "$alpha" "$work/plain/cases.csv" "$work/a$alpha" <<'PY'
 import csv, json, sys
 unit, alpha, plain_csv, adapted = sys.argv[1:5]

@@ -122,6 +122,36 @@ TEST(UpsampleCloud, CloudUnitAdaptsOnTheDownsampledWholeCloud) {
     EXPECT_THROW(upsample_cloud(*model, sphere_points(6, 9), options), InputError);
 }
 
+TEST(UpsampleCloud, TtaDownsamplerPicksTheSamplerOfXDown) {
+    auto model = make_backbone({{"backbone", "pugcn"},
+                                {"ratio", 4},
+                                {"channels", 8},
+                                {"k", 8},
+                                {"upsample_channels", 8},
+                                {"reconstruction_channels", 8},
+                                {"patch_size", 64},
+                                {"downsampler", "fps"},
+                                {"seed", 1}});
+    at::Tensor input = sphere_points(200, 2);
+    UpsampleOptions options;
+    options.tta_steps = 2;
+    options.meta.inner_lr = 0.01;
+    for (const char* unit : {"object", "cloud", "patch"}) {
+        options.tta_unit = unit;
+        options.tta_downsampler = "";
+        UpsampleResult own = upsample_cloud(*model, input, options);
+        options.tta_downsampler = "fps";  // the backbone's own: the same X↓
+        UpsampleResult fps = upsample_cloud(*model, input, options);
+        EXPECT_EQ(fps.loss_before, own.loss_before) << unit;
+        EXPECT_TRUE(at::equal(fps.points, own.points)) << unit;
+        options.tta_downsampler = "random";  // another X↓
+        UpsampleResult random = upsample_cloud(*model, input, options);
+        EXPECT_NE(random.loss_before, own.loss_before) << unit;
+    }
+    options.tta_downsampler = "poisson";
+    EXPECT_THROW(upsample_cloud(*model, input, options), InputError);
+}
+
 TEST(UpsampleCloud, RatioThatIsNotAPowerOfTheModelsIsAnInputError) {
     auto model = small_pugcn(4);
     UpsampleOptions options;

@@ -25,7 +25,8 @@ struct ModelArgs {
     int64_t tta_steps = -1;  // -1: the model's meta-trained N, or 0
     double tta_lr = -1;      // <0: the model's meta-trained alpha
     std::string tta_unit = "object";
-    int64_t batch_patches = 0;  // the backbone's
+    std::string tta_downsampler;  // the backbone's
+    int64_t batch_patches = 0;    // the backbone's
     std::string device = "cpu";
 };
 
@@ -45,6 +46,11 @@ void add_model_options(CLI::App& command, ModelArgs& args) {
                     "one per patch; cloud: one on patches of the downsampled whole input")
         ->check(CLI::IsMember({"object", "patch", "cloud"}));
     command
+        .add_option("--tta-downsampler", args.tta_downsampler,
+                    "sampler of X↓ for adaptation: fps, random or nonuniform (default: the "
+                    "backbone's training sampler)")
+        ->check(CLI::IsMember({"fps", "random", "nonuniform"}));
+    command
         .add_option("--batch-patches", args.batch_patches,
                     "patches per forward pass (default: the backbone's fastest, 64 for PU-GCN "
                     "and Dis-PU, 2 for PU-Dense)")
@@ -58,6 +64,7 @@ UpsampleOptions make_upsample_options(const ModelArgs& args, const InferenceMode
     o.seed = args.seed;
     o.batch_patches = args.batch_patches;
     o.tta_unit = args.tta_unit;
+    o.tta_downsampler = args.tta_downsampler;
     set_adaptation(o, model, args.tta_lr);
     o.tta_steps =
         args.tta_steps >= 0 ? args.tta_steps : (model.meta_trained ? model.meta.inner_steps : 0);

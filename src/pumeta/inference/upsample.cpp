@@ -15,6 +15,7 @@
 #include "pumeta/geometry/normalize.h"
 #include "pumeta/geometry/patches.h"
 #include "pumeta/geometry/sampling.h"
+#include "pumeta/models/downsample.h"
 
 namespace pumeta {
 
@@ -69,13 +70,23 @@ struct AdaptationPairs {
     at::Tensor target;  ///< [P, n·r, 3] (fewer when X is smaller)
 };
 
+/// X↓ of dense [B,M,3]: options.tta_downsampler's M/r points, else the backbone's own.
+at::Tensor downsample_for_adaptation(const Backbone& model, const at::Tensor& dense,
+                                     const UpsampleOptions& options, uint64_t seed) {
+    if (options.tta_downsampler.empty()) return model.downsample(dense, seed);
+    return downsample_points(dense, std::max<int64_t>(1, dense.size(1) / model.ratio()),
+                             options.tta_downsampler, seed);
+}
+
 AdaptationPairs cloud_scale_pairs(const Backbone& model, const at::Tensor& cloud,
-                                  const PatchOptions& patch_options, uint64_t seed) {
+                                  const PatchOptions& patch_options, const UpsampleOptions& options,
+                                  uint64_t seed) {
     const int64_t r = model.ratio();
     if (cloud.size(0) / r < 2)
         throw_input_error("--tta-unit cloud", "{} points are too few to downsample by {}",
                           cloud.size(0), r);
-    at::Tensor down = model.downsample(cloud.unsqueeze(0), seed).squeeze(0).contiguous();
+    at::Tensor down =
+        downsample_for_adaptation(model, cloud.unsqueeze(0), options, seed).squeeze(0).contiguous();
     Patches patches = extract_patches(down, patch_options);
     const int64_t n = patches.points.size(1);
     const int64_t m = std::min(n * r, cloud.size(0));
@@ -120,7 +131,7 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
         return std::make_pair(adapted, losses);
     };
     auto adapt_on = [&](const at::Tensor& x, uint64_t seed) {
-        return adapt_pairs(model.downsample(x, seed), x);
+        return adapt_pairs(downsample_for_adaptation(model, x, options, seed), x);
     };
     // The one-θ' units adapt on at most tta_max_patches pairs (a seeded subset).
     auto subset = [&](int64_t rows) {
@@ -133,7 +144,8 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
         if (options.tta_unit == "object") {
             adapted = adapt_on(patches.points.index_select(0, subset(num_patches)), options.seed);
         } else {
-            AdaptationPairs pairs = cloud_scale_pairs(model, cloud, patch_options, options.seed);
+            AdaptationPairs pairs =
+                cloud_scale_pairs(model, cloud, patch_options, options, options.seed);
             at::Tensor rows = subset(pairs.input.size(0));
             adapted =
                 adapt_pairs(pairs.input.index_select(0, rows), pairs.target.index_select(0, rows));
@@ -194,6 +206,8 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
 UpsampleResult upsample_cloud(const Backbone& model, const at::Tensor& points,
                               const UpsampleOptions& options) {
     check_points(points, "upsample input", 1);
+    if (!options.tta_downsampler.empty())
+        check_downsampler(options.tta_downsampler, "--tta-downsampler");
     auto start = Clock::now();
     int64_t ratio = options.ratio == 0 ? model.ratio() : options.ratio;
     int64_t passes = 0;

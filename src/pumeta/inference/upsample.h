@@ -30,6 +30,9 @@ struct UpsampleOptions {
     /// "cloud": one θ' from X↓ = the downsampled whole cloud, cut into network-sized patches
     /// paired with the points of X around them (docs/design.md).
     std::string tta_unit = "object";
+    /// X↓'s sampler for adaptation ("fps", "random", "nonuniform"); empty = the backbone's
+    /// training-pair downsampler. E.g. "fps" makes X↓ of a blue-noise input blue-noise too.
+    std::string tta_downsampler;
     /// Inner-loop settings (step size, which parameters adapt); inner_steps is ignored in
     /// favour of tta_steps.
     MetaOptions meta;
