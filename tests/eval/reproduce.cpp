@@ -217,6 +217,25 @@ TEST_F(ReproduceTest, AnInterruptedCellResumesAfterItsLastFinishedCase) {
     EXPECT_EQ(cases_csv(), lines);
 }
 
+TEST_F(ReproduceTest, TablesOnlyEvaluatesNothingAndShowsWhatIsPending) {
+    fs::path out = dir_->path() / "tables-only";
+    nlohmann::json empty = reproduce(config(), out.string(), "test", /*evaluate=*/false);
+    EXPECT_FALSE(fs::exists(out / "runs/test-indist-x4/pugcn-x4/cases.csv"));
+    EXPECT_TRUE(fs::exists(out / "tables.md"));
+    const nlohmann::json& cell = row(empty.at("table1"), "PU-GCN").at("cells")[0];
+    EXPECT_EQ(cell.at("missing"), "not evaluated yet");
+    bool listed = false;
+    for (const auto& note : empty.at("missing"))
+        listed |= note.get<std::string>() ==
+                  "not evaluated yet (`--tables-only`): runs/test-indist-x4/pugcn-x4";
+    EXPECT_TRUE(listed);
+
+    nlohmann::json full = reproduce(config(), out.string(), "test");
+    nlohmann::json again = reproduce(config(), out.string(), "test", /*evaluate=*/false);
+    EXPECT_EQ(again.at("table1"), full.at("table1"));
+    EXPECT_EQ(again.at("table2"), full.at("table2"));
+}
+
 TEST_F(ReproduceTest, NoiseBackbonesLimitTableTwoToTheBackbonesListed) {
     fs::path out = dir_->path() / "noise-rows";
     ReproduceConfig c = config();

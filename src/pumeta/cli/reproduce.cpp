@@ -14,6 +14,7 @@ void add_reproduce_command(CLI::App& app, const std::string& command_line) {
         std::string budget = "quick";
         std::string output;
         std::vector<std::string> overrides;
+        bool tables_only = false;
     };
     auto args = std::make_shared<Args>();
     CLI::App* command = app.add_subcommand(
@@ -26,11 +27,14 @@ void add_reproduce_command(CLI::App& app, const std::string& command_line) {
     command->add_option("--set", args->overrides, "override a config field: key=value");
     command->add_option("-o,--output", args->output, "output directory (tables.md, runs/)")
         ->required();
+    command->add_flag("--tables-only", args->tables_only,
+                      "write the tables from the cells evaluated so far, evaluating none (the "
+                      "others show as missing)");
     command->callback([args, command_line] {
         nlohmann::json j = read_json_file(args->config);
         apply_overrides(j, args->overrides);
-        nlohmann::json tables =
-            reproduce(ReproduceConfig::from_json(j, args->budget), args->output, command_line);
+        nlohmann::json tables = reproduce(ReproduceConfig::from_json(j, args->budget), args->output,
+                                          command_line, !args->tables_only);
         std::fputs(tables.at("markdown").get<std::string>().c_str(), stdout);
     });
 }

@@ -175,8 +175,14 @@ class CellLock {
 
 class Runner {
   public:
-    Runner(const ReproduceConfig& config, fs::path out_dir, std::string command_line)
-        : config_(config), out_dir_(std::move(out_dir)), command_line_(std::move(command_line)) {}
+    Runner(const ReproduceConfig& config, fs::path out_dir, std::string command_line, bool evaluate)
+        : config_(config),
+          out_dir_(std::move(out_dir)),
+          command_line_(std::move(command_line)),
+          evaluate_(evaluate) {}
+
+    /// Cells that `--tables-only` left out because they were not evaluated yet.
+    const std::set<std::string>& pending() const { return pending_; }
 
     fs::path cases_dir(const std::string& set, int64_t ratio) const {
         return fs::path(config_.dataset_dir) / "cases" / set / ("x" + std::to_string(ratio));
@@ -231,6 +237,11 @@ class Runner {
                    fs::exists(spec_file) &&
                    nlohmann::json::parse(std::ifstream(spec_file), nullptr, false) == identity;
         };
+        if (!evaluate_ && !reusable()) {
+            pending_.insert(key);
+            result.error = "not evaluated yet";
+            return result;
+        }
         std::optional<CellLock> lock;
         if (!reusable()) {
             lock = CellLock::try_claim(fs::path(dir.string() + ".lock"));
@@ -273,7 +284,9 @@ class Runner {
             try {
                 evaluate_cases(cases.string(), model.backbone.get(), options, dir.string());
             } catch (const InputError& e) {
-                // E.g. no sampling floor for sets without a second GT sample: a missing cell.
+                // E.g. no sampling floor for sets without a second GT sample: a missing cell
+                // (nothing to resume).
+                fs::remove(partial_spec);
                 result.error = e.what();
                 spdlog::warn("reproduce: {}: {}", key, result.error);
                 return result;
@@ -325,6 +338,8 @@ class Runner {
 
   private:
     const ReproduceConfig& config_;
+    bool evaluate_ = true;
+    std::set<std::string> pending_;
     fs::path out_dir_;
     std::string command_line_;
     std::map<std::string, RunResult> done_;
@@ -883,6 +898,8 @@ nlohmann::json tables_pass(const ReproduceConfig& config, Runner& runner,
         writer.table("Table VI", config.sets, {kCd, kPsnr, kSeconds}, rows, tables["table6"]);
     }
 
+    for (const std::string& cell : runner.pending())
+        notes.push_back("not evaluated yet (`--tables-only`): runs/" + cell);
     if (!notes.empty()) {
         std::sort(notes.begin(), notes.end());
         notes.erase(std::unique(notes.begin(), notes.end()), notes.end());
@@ -900,9 +917,9 @@ nlohmann::json tables_pass(const ReproduceConfig& config, Runner& runner,
 }  // namespace
 
 nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_dir,
-                         const std::string& command_line) {
+                         const std::string& command_line, bool evaluate) {
     fs::create_directories(out_dir);
-    Runner runner(config, out_dir, command_line);
+    Runner runner(config, out_dir, command_line, evaluate);
     for (;;) {
         runner.start_pass();
         nlohmann::json tables = tables_pass(config, runner, command_line);

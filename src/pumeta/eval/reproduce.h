@@ -86,7 +86,9 @@ struct ReproduceConfig {
 };
 
 /// Runs (or reuses) every evaluation the tables need and writes them; returns tables.json.
+/// With evaluate = false (`--tables-only`) it only reuses: a cell not evaluated yet shows as
+/// missing ("—") and is listed under "Missing rows".
 nlohmann::json reproduce(const ReproduceConfig& config, const std::string& out_dir,
-                         const std::string& command_line);
+                         const std::string& command_line, bool evaluate = true);
 
 }  // namespace pumeta
