@@ -716,7 +716,10 @@ nlohmann::json tables_pass(const ReproduceConfig& config, Runner& runner,
         md << "## Table II: noise robustness, " << r << "× on " << set << "\n\n"
            << "Inputs with Gaussian noise of the relative protocol (`relX` = X % of the GT's "
               "bounding-box diagonal, docs/data.md), scored against the clean GT.";
-        if (!only.empty()) {
+        const bool all_listed = std::all_of(
+            config.backbones.begin(), config.backbones.end(),
+            [&](const std::string& b) { return std::count(only.begin(), only.end(), b) > 0; });
+        if (!only.empty() && !all_listed) {
             md << " Rows only for";
             for (const std::string& b : only) md << " " << display_name(b);
             md << " (`noise_backbones`: the others cost too much time here).";
