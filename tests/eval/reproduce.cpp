@@ -209,6 +209,13 @@ TEST_F(ReproduceTest, AnInterruptedCellResumesAfterItsLastFinishedCase) {
     reproduce(config(), out.string(), "test");
     EXPECT_EQ(cases_csv(), lines);
 
+    // So is a row that does not parse (here a CD with a stray letter).
+    std::string garbled = marked;
+    garbled.replace(cd_at, 3, "0.5x");
+    interrupt(garbled + "\n", identity);
+    reproduce(config(), out.string(), "test");
+    EXPECT_EQ(cases_csv(), lines);
+
     // A partial cell of other settings (here another seed) starts afresh.
     nlohmann::json other = identity;
     other["seed"] = 12345;

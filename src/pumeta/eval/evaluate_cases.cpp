@@ -3,6 +3,7 @@
 #include <ATen/ATen.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdlib>
@@ -46,8 +47,17 @@ const char* const kCsvHeader =
     "case,n_in,n_out,cd,hd,p2f,psnr,seconds,tta_seconds,loss_before,loss_after";
 constexpr size_t kCsvFields = 11;
 
+/// A CSV number as csv_number() writes it: empty (NaN) or a whole-field floating-point value.
+bool is_csv_number(const std::string& field) {
+    if (field.empty()) return true;
+    char* end = nullptr;
+    std::strtod(field.c_str(), &end);
+    return end == field.c_str() + field.size();
+}
+
 /// The complete rows of an interrupted run's cases.csv.tmp (a last line cut short by the
-/// interruption is dropped): case name -> the row's fields.
+/// interruption, or any row that does not parse, is dropped and so evaluated again): case
+/// name -> the row's fields.
 std::map<std::string, std::vector<std::string>> read_finished_rows(const fs::path& file) {
     std::map<std::string, std::vector<std::string>> rows;
     std::ifstream in(file);
@@ -60,15 +70,16 @@ std::map<std::string, std::vector<std::string>> read_finished_rows(const fs::pat
         std::vector<std::string> fields;
         std::stringstream row(text.substr(start + 1, end - start - 1));
         for (std::string field; std::getline(row, field, ',');) fields.push_back(field);
-        fields.resize(kCsvFields);  // getline drops trailing empty fields
-        rows[fields[0]] = fields;
         start = end;
+        if (fields.empty() || fields.size() > kCsvFields) continue;
+        fields.resize(kCsvFields);  // getline drops trailing empty fields
+        if (std::all_of(fields.begin() + 1, fields.end(), is_csv_number)) rows[fields[0]] = fields;
     }
     return rows;
 }
 
 double csv_value(const std::string& field) {
-    return field.empty() ? std::nan("") : std::stod(field);
+    return field.empty() ? std::nan("") : std::strtod(field.c_str(), nullptr);
 }
 
 std::string shell_quote(const std::string& text) {
