@@ -167,6 +167,14 @@ TEST(Maml, TasksWhoseInnerLoopDivergesAreDroppedAndTheRestAveraged) {
 }
 
 // Two "ranks" combined as data-parallel meta-training does (packets summed element-wise).
+// Every tensor of `got` equals `want`'s up to double rounding.
+void expect_same_gradients(const ParamMap& got, const ParamMap& want) {
+    for (const auto& [name, g] : want)
+        EXPECT_LT((got.at(name) - g).abs().max().item<double>(),
+                  1e-12 * (g.abs().max().item<double>() + 1e-12))
+            << name;
+}
+
 MetaStepResult combine(const MetaStepResult& a, const MetaStepResult& b, bool* stop) {
     ParamMap pa = pack_step_sum(a, false), pb = pack_step_sum(b, true), summed;
     for (const auto& [name, t] : pa) summed[name] = t + pb.at(name);
@@ -193,10 +201,7 @@ TEST(Maml, RanksCombineIntoTheWholeBatchsMeansOverKeptTasks) {
     EXPECT_EQ(combined.dropped_tasks, 0);
     EXPECT_NEAR(combined.outer_loss, whole.outer_loss, 1e-12);
     EXPECT_NEAR(combined.inner_loss_after, whole.inner_loss_after, 1e-12);
-    for (const auto& [name, g] : whole.grads)
-        EXPECT_LT((combined.grads.at(name) - g).abs().max().item<double>(),
-                  1e-12 * (g.abs().max().item<double>() + 1e-12))
-            << name;
+    expect_same_gradients(combined.grads, whole.grads);
     // A rank whose one task diverged counts for nothing (an average of the ranks' means would
     // halve the other rank's gradient).
     options.inner_lr = 1e9;
@@ -207,10 +212,7 @@ TEST(Maml, RanksCombineIntoTheWholeBatchsMeansOverKeptTasks) {
     EXPECT_EQ(combined.tasks, 3);
     EXPECT_EQ(combined.dropped_tasks, 1);
     EXPECT_NEAR(combined.outer_loss, first.outer_loss, 1e-12);
-    for (const auto& [name, g] : first.grads)
-        EXPECT_LT((combined.grads.at(name) - g).abs().max().item<double>(),
-                  1e-12 * (g.abs().max().item<double>() + 1e-12))
-            << name;
+    expect_same_gradients(combined.grads, first.grads);
 }
 
 TEST(Maml, AdaptationLowersTheSelfSupervisedLossAndLeavesTheModelUnchanged) {
