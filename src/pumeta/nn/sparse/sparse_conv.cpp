@@ -1,6 +1,7 @@
 #include "pumeta/nn/sparse/sparse_conv.h"
 
 #include <ATen/ATen.h>
+#include <torch/csrc/autograd/custom_function.h>
 
 #include <algorithm>
 #include <cmath>
@@ -52,9 +53,9 @@ at::Tensor on_device(const at::Tensor& index, const at::Tensor& like) {
 // index_select's backward is an index_add_.
 constexpr int64_t kNarrowChannels = 16;
 
-// Floats of gathered features (and of products) per block of a batched convolution without
-// gradients: 1 MiB, so they stay in cache between gather, GEMM and scatter. A 3³ convolution
-// 64 -> 64 on 99k sites (bench_nn_sparse_conv): 1,958 ms unblocked, 526 ms blocked.
+// Floats of gathered features (and of products) per block of a batched convolution: 1 MiB, so
+// they stay in cache between gather, GEMM and scatter. A 3³ convolution 64 -> 64 on 99k sites
+// (bench_nn_sparse_conv): 1,958 ms unblocked, 526 ms blocked.
 constexpr int64_t kBlockFloats = int64_t(1) << 18;
 
 at::Tensor expanded(const at::Tensor& index, int64_t channels) {
@@ -78,6 +79,140 @@ void scatter_add_rows(at::Tensor& out, const at::Tensor& index, const at::Tensor
         out.scatter_add_(0, expanded(i, out.size(1)), rows);
 }
 
+/// Rows per block for gathered features of `width` channels over `offsets` kernel offsets:
+/// all of them while autograd records (each block's gather would have its own backward, an
+/// index_add_ into a zero tensor the size of the whole input), else a cache-sized block.
+int64_t block_rows(int64_t rows, int64_t offsets, int64_t width) {
+    if (at::GradMode::is_enabled()) return rows;
+    return std::max<int64_t>(64, kBlockFloats / (offsets * width));
+}
+
+/// x with one zero row appended: the row that the batched maps' padding pairs read.
+at::Tensor with_zero_row(const at::Tensor& x) { return at::cat({x, x.new_zeros({1, x.size(1)})}); }
+
+/// Σ_k scatter(map.out[k], gather(map.in[k], features) · weight[k]), without the bias.
+at::Tensor kernel_map_product(const at::Tensor& features, const at::Tensor& weight,
+                              const KernelMap& map) {
+    // Start from the centre tap where it maps every site to itself: no gather, no scatter.
+    at::Tensor out;
+    if (map.identity_offset >= 0)
+        out = features.mm(weight[map.identity_offset]);
+    else
+        out = at::zeros({map.output_size, weight.size(2)}, features.options());
+    if (!map.batched_offsets.defined()) {
+        for (int64_t k = 0; k < map.kernel_volume(); ++k) {
+            if (k == map.identity_offset || map.in[k].numel() == 0) continue;
+            scatter_add_rows(out, map.out[k], gather_rows(features, map.in[k]).mm(weight[k]));
+        }
+        return out;
+    }
+    // All other offsets at once: gather from the features plus a zero row, one batched GEMM,
+    // scatter into the output plus a dropped row; in blocks of rows whose gathered features and
+    // products stay in cache.
+    const int64_t offsets = map.batched_offsets.numel();
+    const int64_t rows = map.batched_in.numel() / offsets;
+    const int64_t block = block_rows(rows, offsets, std::max(features.size(1), weight.size(2)));
+    at::Tensor padded_in = with_zero_row(features);
+    at::Tensor weights = weight.index_select(0, on_device(map.batched_offsets, features));
+    at::Tensor padded_out = with_zero_row(out);
+    at::Tensor in_rows = map.batched_in.view({offsets, rows});
+    at::Tensor out_rows = map.batched_out.view({offsets, rows});
+    for (int64_t start = 0; start < rows; start += block) {
+        const int64_t n = std::min(block, rows - start);
+        at::Tensor in_index =
+            rows <= block ? map.batched_in : in_rows.narrow(1, start, n).reshape(-1);
+        at::Tensor out_index =
+            rows <= block ? map.batched_out : out_rows.narrow(1, start, n).reshape(-1);
+        at::Tensor gathered = gather_rows(padded_in, in_index).view({offsets, n, features.size(1)});
+        scatter_add_rows(padded_out, out_index, at::bmm(gathered, weights).view({-1, out.size(1)}));
+    }
+    return padded_out.narrow(0, 0, map.output_size);
+}
+
+/// The gradient of <grad_out, kernel_map_product(features, W, map)> with respect to W:
+/// [K, Cin, Cout] whose row k is gather(map.in[k], features)ᵀ · gather(map.out[k], grad_out).
+at::Tensor kernel_map_weight_gradient(const at::Tensor& features, const at::Tensor& grad_out,
+                                      const KernelMap& map) {
+    std::vector<at::Tensor> per_offset(size_t(map.kernel_volume()));
+    if (map.identity_offset >= 0)
+        per_offset[size_t(map.identity_offset)] = features.t().mm(grad_out);
+    if (map.batched_offsets.defined()) {
+        const int64_t offsets = map.batched_offsets.numel();
+        const int64_t rows = map.batched_in.numel() / offsets;
+        const int64_t block =
+            block_rows(rows, offsets, std::max(features.size(1), grad_out.size(1)));
+        at::Tensor padded_in = with_zero_row(features), padded_grad = with_zero_row(grad_out);
+        at::Tensor in_rows = map.batched_in.view({offsets, rows});
+        at::Tensor out_rows = map.batched_out.view({offsets, rows});
+        at::Tensor sum;
+        for (int64_t start = 0; start < rows; start += block) {
+            const int64_t n = std::min(block, rows - start);
+            at::Tensor x = gather_rows(padded_in, in_rows.narrow(1, start, n).reshape(-1))
+                               .view({offsets, n, features.size(1)});
+            at::Tensor g = gather_rows(padded_grad, out_rows.narrow(1, start, n).reshape(-1))
+                               .view({offsets, n, grad_out.size(1)});
+            if (sum.defined())
+                sum.baddbmm_(x.transpose(1, 2), g);  // only without autograd: one block else
+            else
+                sum = at::bmm(x.transpose(1, 2), g);
+        }
+        auto k = map.batched_offsets.accessor<int64_t, 1>();
+        for (int64_t i = 0; i < offsets; ++i) per_offset[size_t(k[i])] = sum[i];
+    } else {
+        for (int64_t k = 0; k < map.kernel_volume(); ++k) {
+            if (k == map.identity_offset || map.in[k].numel() == 0) continue;
+            per_offset[size_t(k)] =
+                gather_rows(features, map.in[k]).t().mm(gather_rows(grad_out, map.out[k]));
+        }
+    }
+    for (at::Tensor& w : per_offset)
+        if (!w.defined()) w = features.new_zeros({features.size(1), grad_out.size(1)});
+    return at::stack(per_offset);
+}
+
+/// A kernel map carried through autograd's saved data.
+struct SavedKernelMap : torch::CustomClassHolder {
+    explicit SavedKernelMap(KernelMap m) : map(std::move(m)) {}
+    KernelMap map;
+};
+
+/// kernel_map_product with its own backward, so that the backward runs in row blocks too
+/// (autograd's own backward of the blocked ops would allocate a whole-input gradient per
+/// block) and saves the features and weights rather than every gathered row. The backward is
+/// built from the same differentiable pieces, so a graph-recording backward (MAML's inner
+/// loop) differentiates again: the feature gradient is this product on the transposed map.
+class KernelMapProduct : public torch::autograd::Function<KernelMapProduct> {
+  public:
+    static at::Tensor forward(torch::autograd::AutogradContext* ctx, const at::Tensor& features,
+                              const at::Tensor& weight, const KernelMap& map) {
+        ctx->save_for_backward({features, weight});
+        ctx->saved_data["map"] =
+            c10::IValue::make_capsule(c10::make_intrusive<SavedKernelMap>(map));
+        return kernel_map_product(features, weight, map);
+    }
+
+    static torch::autograd::variable_list backward(torch::autograd::AutogradContext* ctx,
+                                                   torch::autograd::variable_list grads) {
+        torch::autograd::variable_list saved = ctx->get_saved_variables();
+        const at::Tensor& features = saved[0];
+        const at::Tensor& weight = saved[1];
+        c10::intrusive_ptr<torch::CustomClassHolder> holder = ctx->saved_data["map"].toCapsule();
+        const KernelMap& map = static_cast<const SavedKernelMap*>(holder.get())->map;
+        const at::Tensor& grad_out = grads[0];
+        at::Tensor grad_features, grad_weight;
+        if (features.requires_grad()) {
+            KernelMap transposed = map.transposed();
+            at::Tensor weight_t = weight.transpose(1, 2);
+            grad_features = at::GradMode::is_enabled()
+                                ? KernelMapProduct::apply(grad_out, weight_t, transposed)
+                                : kernel_map_product(grad_out, weight_t, transposed);
+        }
+        if (weight.requires_grad())
+            grad_weight = kernel_map_weight_gradient(features, grad_out, map);
+        return {grad_features, grad_weight, at::Tensor()};
+    }
+};
+
 }  // namespace
 
 void add_sparse_conv(ParamMap& params, const std::string& prefix, int64_t in, int64_t out,
@@ -98,48 +233,10 @@ at::Tensor apply_kernel_map(const at::Tensor& features, const at::Tensor& weight
         weight.size(1) != features.size(1))
         throw_input_error(kContext, "weight {} does not match {} offsets and {} channels",
                           shape_string(weight), map.kernel_volume(), features.size(1));
-    // Start from the centre tap where it maps every site to itself: no gather, no scatter.
-    at::Tensor out;
-    if (map.identity_offset >= 0)
-        out = features.mm(weight[map.identity_offset]);
-    else
-        out = at::zeros({map.output_size, weight.size(2)}, features.options());
-    if (map.batched_offsets.defined()) {
-        // All other offsets at once: gather from the features plus a zero row, one batched
-        // GEMM, scatter into the output plus a dropped row; in blocks of rows whose gathered
-        // features and products stay in cache.
-        const int64_t offsets = map.batched_offsets.numel();
-        const int64_t rows = map.batched_in.numel() / offsets;
-        const int64_t width = std::max(features.size(1), weight.size(2));
-        // Under autograd one block: each block's gather would have its own backward, an
-        // index_add_ into a zero tensor the size of the whole input.
-        const bool tracked =
-            at::GradMode::is_enabled() && (features.requires_grad() || weight.requires_grad());
-        const int64_t block =
-            tracked ? rows : std::max<int64_t>(64, kBlockFloats / (offsets * width));
-        at::Tensor padded_in = at::cat({features, features.new_zeros({1, features.size(1)})});
-        at::Tensor weights = weight.index_select(0, on_device(map.batched_offsets, features));
-        at::Tensor padded_out = at::cat({out, out.new_zeros({1, out.size(1)})});
-        at::Tensor in_rows = map.batched_in.view({offsets, rows});
-        at::Tensor out_rows = map.batched_out.view({offsets, rows});
-        for (int64_t start = 0; start < rows; start += block) {
-            const int64_t n = std::min(block, rows - start);
-            at::Tensor in_index =
-                rows <= block ? map.batched_in : in_rows.narrow(1, start, n).reshape(-1);
-            at::Tensor out_index =
-                rows <= block ? map.batched_out : out_rows.narrow(1, start, n).reshape(-1);
-            at::Tensor gathered =
-                gather_rows(padded_in, in_index).view({offsets, n, features.size(1)});
-            scatter_add_rows(padded_out, out_index,
-                             at::bmm(gathered, weights).view({-1, out.size(1)}));
-        }
-        out = padded_out.narrow(0, 0, map.output_size);
-        return bias.defined() ? out + bias : out;
-    }
-    for (int64_t k = 0; k < map.kernel_volume(); ++k) {
-        if (k == map.identity_offset || map.in[k].numel() == 0) continue;
-        scatter_add_rows(out, map.out[k], gather_rows(features, map.in[k]).mm(weight[k]));
-    }
+    const bool tracked =
+        at::GradMode::is_enabled() && (features.requires_grad() || weight.requires_grad());
+    at::Tensor out = tracked ? KernelMapProduct::apply(features, weight, map)
+                             : kernel_map_product(features, weight, map);
     return bias.defined() ? out + bias : out;
 }
 

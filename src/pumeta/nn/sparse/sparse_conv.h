@@ -1,6 +1,8 @@
 // Sparse 3-D convolutions on SparseTensors, running from an explicit ParamMap (MAML's fast
-// weights) and built only from row gathers (index_select / gather), GEMMs (mm / bmm) and
-// scatter-adds (index_add_ / scatter_add_), so autograd differentiates them twice. Semantics follow
+// weights) and built from row gathers (index_select / gather), GEMMs (mm / bmm) and scatter-adds
+// (index_add_ / scatter_add_) in cache-sized row blocks. Their backward is written out (the same
+// blocked pieces on the transposed map) and is itself differentiable, so MAML's second-order
+// meta-gradient flows through them. Semantics follow
 // MinkowskiEngine: kernels are centred on the output site, offsets are in units of the input stride
 // (of the output stride for transposed convolutions), weights are [K³, Cin, Cout].
 #pragma once
