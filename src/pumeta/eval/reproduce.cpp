@@ -42,6 +42,15 @@ std::string display_name(const std::string& backbone) {
     return backbone;
 }
 
+/// `command` with every "{bindir}" replaced by the directory of this executable.
+std::string with_bindir(std::string command) {
+    const std::string bindir = fs::read_symlink("/proc/self/exe").parent_path().string();
+    for (size_t at = command.find("{bindir}"); at != std::string::npos;
+         at = command.find("{bindir}", at + bindir.size()))
+        command.replace(at, 8, bindir);
+    return command;
+}
+
 // ---------------------------------------------------------------------------------------------
 // One evaluation: a method on the cases of one set at one ratio.
 
@@ -53,7 +62,7 @@ struct RunSpec {
     int64_t tta_steps = 0;
     double tta_lr = -1;          // < 0: the model's own step sizes
     std::string noise;           // "" = clean input
-    std::string label, command;  // external: the baseline's label and command
+    std::string label, command;  // external: the baseline's label and command ({bindir} kept)
     int64_t max_cases = -1;      // < 0: the config's max_cases
     ZeroShotBaseline zero_shot;  // method zero-shot (model: the architecture's checkpoint)
 
@@ -264,7 +273,7 @@ class Runner {
             EvalOptions options;
             options.resume = resume;
             options.method = spec.method;
-            options.external_command = spec.command;
+            options.external_command = with_bindir(spec.command);
             options.noise = spec.noise;
             options.max_cases = max_cases;
             options.zero_shot.steps = spec.zero_shot.steps;
@@ -664,11 +673,7 @@ nlohmann::json tables_pass(const ReproduceConfig& config, Runner& runner,
         reference_row("sampling floor (2nd GT sample)", "floor");
         reference_row("midpoint baseline", "midpoint");
         for (const ExternalBaseline& baseline : config.external_baselines) {
-            std::string command = baseline.command;
-            std::string bindir = fs::read_symlink("/proc/self/exe").parent_path().string();
-            for (size_t at = command.find("{bindir}"); at != std::string::npos;
-                 at = command.find("{bindir}", at + bindir.size()))
-                command.replace(at, 8, bindir);
+            std::string command = with_bindir(baseline.command);
             std::string program = command.substr(0, command.find(' '));
             // A bare program name is left to the shell's PATH lookup.
             if (program.find('/') != std::string::npos && access(program.c_str(), X_OK) != 0) {
@@ -680,7 +685,9 @@ nlohmann::json tables_pass(const ReproduceConfig& config, Runner& runner,
                             per_set([&](const std::string& set) {
                                 RunSpec s = spec(set, r, "external");
                                 s.label = baseline.label;
-                                s.command = command;
+                                // The template: a cell's identity does not depend on where
+                                // this binary was run from.
+                                s.command = baseline.command;
                                 return &runner.get(s);
                             }),
                             {}});
