@@ -11,25 +11,18 @@
 #include <filesystem>
 #include <random>
 
+#include "pumeta/geometry/sampling.h"
+
 namespace {
 
 namespace fs = std::filesystem;
 
+/// Uniform points with random normals and colours.
 pumeta::PointCloud random_cloud(int64_t n, uint64_t seed) {
-    std::mt19937_64 rng(seed);
-    std::uniform_real_distribution<float> uniform(-1.f, 1.f);
     pumeta::PointCloud cloud;
-    cloud.points = at::empty({n, 3}, at::kFloat);
-    cloud.normals = at::empty({n, 3}, at::kFloat);
-    cloud.colors = at::empty({n, 3}, at::kByte);
-    float* p = cloud.points.data_ptr<float>();
-    float* q = cloud.normals.data_ptr<float>();
-    uint8_t* c = cloud.colors.data_ptr<uint8_t>();
-    for (int64_t i = 0; i < 3 * n; ++i) {
-        p[i] = uniform(rng);
-        q[i] = uniform(rng);
-        c[i] = static_cast<uint8_t>(rng());
-    }
+    cloud.points = pumeta::uniform_random_points(n, seed);
+    cloud.normals = pumeta::uniform_random_points(n, seed + 1);
+    cloud.colors = ((pumeta::uniform_random_points(n, seed + 2) + 1) * 127.5).to(at::kByte);
     return cloud;
 }
 

@@ -12,17 +12,17 @@
 #include <random>
 #include <vector>
 
-#include "../random_cloud.h"
+#include "pumeta/geometry/sampling.h"
 
 namespace {
 
 constexpr int64_t kPoints = 100000;
 constexpr int64_t kNeighbours = 16;
 
-using pumeta::bench::random_cloud;
+using pumeta::uniform_random_points;
 
 const at::Tensor& cloud() {
-    static const at::Tensor points = random_cloud(kPoints, 1);
+    static const at::Tensor points = uniform_random_points(kPoints, 1);
     return points;
 }
 
@@ -94,7 +94,7 @@ BENCHMARK(BM_NanoflannQuery)->Unit(benchmark::kMillisecond)->UseRealTime();
 /// thread.
 void BM_SmallBruteForce(benchmark::State& state) {
     at::set_num_threads(1);
-    at::Tensor points = random_cloud(state.range(0), 2);
+    at::Tensor points = uniform_random_points(state.range(0), 2);
     const int64_t k = std::min<int64_t>(16, state.range(0));
     for (auto _ : state) benchmark::DoNotOptimize(pumeta::knn_brute_force(points, points, k));
 }
@@ -102,7 +102,7 @@ BENCHMARK(BM_SmallBruteForce)->RangeMultiplier(4)->Range(16, 4096)->UseRealTime(
 
 void BM_SmallKdTree(benchmark::State& state) {
     at::set_num_threads(1);
-    at::Tensor points = random_cloud(state.range(0), 2);
+    at::Tensor points = uniform_random_points(state.range(0), 2);
     const int64_t k = std::min<int64_t>(16, state.range(0));
     for (auto _ : state) benchmark::DoNotOptimize(pumeta::KdTree(points).query(points, k));
 }
@@ -112,8 +112,8 @@ BENCHMARK(BM_SmallKdTree)->RangeMultiplier(4)->Range(16, 4096)->UseRealTime();
 /// knn() (a tree per element) against the brute force. Args: B, N.
 void BM_BatchedKnn(benchmark::State& state) {
     at::set_num_threads(2);
-    at::Tensor points =
-        random_cloud(state.range(0) * state.range(1), 3).view({state.range(0), state.range(1), 3});
+    at::Tensor points = uniform_random_points(state.range(0) * state.range(1), 3)
+                            .view({state.range(0), state.range(1), 3});
     for (auto _ : state) benchmark::DoNotOptimize(pumeta::knn(points, points, 16));
 }
 BENCHMARK(BM_BatchedKnn)
@@ -124,8 +124,8 @@ BENCHMARK(BM_BatchedKnn)
 
 void BM_BatchedBruteForce(benchmark::State& state) {
     at::set_num_threads(2);
-    at::Tensor points =
-        random_cloud(state.range(0) * state.range(1), 3).view({state.range(0), state.range(1), 3});
+    at::Tensor points = uniform_random_points(state.range(0) * state.range(1), 3)
+                            .view({state.range(0), state.range(1), 3});
     for (auto _ : state) benchmark::DoNotOptimize(pumeta::knn_brute_force(points, points, 16));
 }
 BENCHMARK(BM_BatchedBruteForce)

@@ -10,15 +10,15 @@
 #include <limits>
 #include <random>
 
-#include "../random_cloud.h"
+#include "pumeta/geometry/sampling.h"
 
 namespace {
 
-using pumeta::bench::random_cloud;
+using pumeta::uniform_random_points;
 
 void extract(benchmark::State& state, int64_t part_points) {
     at::set_num_threads(1);
-    static const at::Tensor cloud = random_cloud(300000, 1);
+    static const at::Tensor cloud = uniform_random_points(300000, 1);
     pumeta::PatchOptions options;
     options.fps_part_points = part_points;
     for (auto _ : state) benchmark::DoNotOptimize(pumeta::extract_patches(cloud, options).points);

@@ -10,11 +10,9 @@
 #include <random>
 #include <vector>
 
-#include "../random_cloud.h"
-
 namespace {
 
-using pumeta::bench::random_cloud;
+using pumeta::uniform_random_points;
 
 /// Unit UV sphere: `rings` latitude bands, `sectors` longitude bands, two pole vertices;
 /// 2 * sectors * (rings - 1) triangles.
@@ -54,7 +52,7 @@ const pumeta::TriangleMesh& sphere() {
 
 void BM_FarthestPointSampling(benchmark::State& state) {
     at::set_num_threads(static_cast<int>(state.range(0)));
-    at::Tensor points = random_cloud(8192, 1);
+    at::Tensor points = uniform_random_points(8192, 1);
     for (auto _ : state) benchmark::DoNotOptimize(pumeta::farthest_point_sampling(points, 2048));
 }
 BENCHMARK(BM_FarthestPointSampling)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
@@ -62,7 +60,7 @@ BENCHMARK(BM_FarthestPointSampling)->Arg(1)->Unit(benchmark::kMillisecond)->UseR
 /// Four elements at once, in parallel on two threads.
 void BM_FarthestPointSamplingBatched(benchmark::State& state) {
     at::set_num_threads(2);
-    at::Tensor points = random_cloud(4 * 8192, 1).view({4, 8192, 3});
+    at::Tensor points = uniform_random_points(4 * 8192, 1).view({4, 8192, 3});
     for (auto _ : state)
         benchmark::DoNotOptimize(pumeta::farthest_point_sampling_batched(points, 2048));
 }
@@ -71,7 +69,7 @@ BENCHMARK(BM_FarthestPointSamplingBatched)->Unit(benchmark::kMillisecond)->UseRe
 /// The tensor-op path that GPUs take, here on the CPU (float64 input selects it).
 void BM_FarthestPointSamplingTensorOps(benchmark::State& state) {
     at::set_num_threads(1);
-    at::Tensor points = random_cloud(8192, 1).to(at::kDouble).unsqueeze(0);
+    at::Tensor points = uniform_random_points(8192, 1).to(at::kDouble).unsqueeze(0);
     for (auto _ : state)
         benchmark::DoNotOptimize(pumeta::farthest_point_sampling_batched(points, 2048));
 }

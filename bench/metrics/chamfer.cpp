@@ -10,18 +10,17 @@
 #include <random>
 #include <vector>
 
+#include "pumeta/geometry/sampling.h"
 #include "pumeta/metrics/metrics.h"
 
 namespace {
 
 constexpr int64_t kPoints = 8192;
 
+/// uniform_random_points as a flat xyz vector, the layout of the nanoflann baseline.
 std::vector<float> random_cloud(int64_t n, uint64_t seed) {
-    std::mt19937_64 rng(seed);
-    std::uniform_real_distribution<float> uniform(-1.f, 1.f);
-    std::vector<float> xyz(3 * n);
-    for (float& x : xyz) x = uniform(rng);
-    return xyz;
+    at::Tensor points = pumeta::uniform_random_points(n, seed);
+    return std::vector<float>(points.data_ptr<float>(), points.data_ptr<float>() + 3 * n);
 }
 
 at::Tensor to_tensor(const std::vector<float>& xyz) {

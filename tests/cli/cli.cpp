@@ -8,6 +8,7 @@
 
 #include "pumeta/data/patch_set.h"
 #include "pumeta/geometry/io.h"
+#include "pumeta/geometry/sampling.h"
 #include "pumeta/models/checkpoint.h"
 #include "pumeta/train/trainer.h"
 #include "support/test_util.h"
@@ -55,8 +56,8 @@ TEST(Cli, BadInputsGiveExitTwoAndNoOutputFile) {
 
 TEST(Cli, MetricsJsonHasTheContractKeys) {
     test::TempDir dir;
-    at::Tensor gt = test::random_points(200, 1);
-    at::Tensor pred = gt + 0.01 * test::random_points(200, 2);
+    at::Tensor gt = uniform_random_points(200, 1);
+    at::Tensor pred = gt + 0.01 * uniform_random_points(200, 2);
     write_point_cloud(dir.file("gt.ply"), {gt});
     write_point_cloud(dir.file("pred.ply"), {pred});
     auto r = test::run_cli({"metrics", dir.file("pred.ply"), dir.file("gt.ply"), "--json"});
@@ -99,7 +100,7 @@ TEST(Cli, PuDenseUpsamplesAtAnyRatioAndRatioBoundModelsSayWhy) {
                                                             {"patch_size", 32},
                                                             {"seed", 3}}));
     save_checkpoint(dir.file("pugcn.pt"), *make_backbone(test::tiny_pugcn_config(4, 1)));
-    write_point_cloud(dir.file("in.ply"), {test::random_points(60, 1)});
+    write_point_cloud(dir.file("in.ply"), {uniform_random_points(60, 1)});
     auto info = test::run_cli({"info", dir.file("pudense.pt"), "--json"});
     ASSERT_EQ(info.exit_code, 0) << info.err;
     EXPECT_EQ(nlohmann::json::parse(info.out)["any_ratio"], true);
@@ -119,7 +120,7 @@ TEST(Cli, PuDenseUpsamplesAtAnyRatioAndRatioBoundModelsSayWhy) {
 
 TEST(Cli, UnknownDeviceIsAnInputError) {
     test::TempDir dir;
-    write_point_cloud(dir.file("in.ply"), {test::random_points(50, 1)});
+    write_point_cloud(dir.file("in.ply"), {uniform_random_points(50, 1)});
     auto r = test::run_cli(
         {"upsample", dir.file("in.ply"), "-o", dir.file("out.ply"), "--device", "tpu"});
     EXPECT_EQ(r.exit_code, 2) << r.err;
@@ -131,7 +132,7 @@ TEST(Cli, TrainStoppedBySigtermSavesACheckpointAndExits130) {
     PatchSet set;
     set.ratio = 4;
     set.patch_points = 16;
-    set.points = test::random_points(200, 5);
+    set.points = uniform_random_points(200, 5);
     set.offsets = at::tensor({int64_t{0}, int64_t{200}});
     set.seeds = at::tensor(std::vector<int64_t>{0, 0, 0, 99}).view({2, 2});
     set.ids = {"a"};

@@ -13,6 +13,7 @@
 #include "pumeta/data/patch_set.h"
 #include "pumeta/data/shapes.h"
 #include "pumeta/geometry/io.h"
+#include "pumeta/geometry/sampling.h"
 #include "support/test_util.h"
 
 namespace pumeta {
@@ -181,7 +182,7 @@ TEST(PatchLoader, BatchesAreNormalisedDeterministicAndResumable) {
     PatchSet set;
     set.ratio = 4;
     set.patch_points = 16;
-    at::Tensor cloud = test::random_points(400, 1);
+    at::Tensor cloud = uniform_random_points(400, 1);
     set.points = cloud / cloud.norm(2, 1, true);
     set.offsets = at::tensor({int64_t{0}, int64_t{400}});
     set.seeds = at::stack({at::zeros({10}, at::kLong), at::arange(10, at::kLong) * 40}, 1);

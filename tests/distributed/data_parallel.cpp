@@ -17,6 +17,7 @@
 
 #include "distributed/free_port.h"
 #include "pumeta/data/patch_set.h"
+#include "pumeta/geometry/sampling.h"
 #include "pumeta/models/backbone.h"
 #include "pumeta/models/checkpoint.h"
 #include "support/test_util.h"
@@ -87,7 +88,7 @@ class DataParallel : public ::testing::Test {
         PatchSet set;
         set.ratio = 2;
         set.patch_points = 32;
-        set.points = test::random_points(600, 21);
+        set.points = uniform_random_points(600, 21);
         set.offsets = at::tensor({int64_t{0}, int64_t{200}, int64_t{400}, int64_t{600}});
         std::vector<int64_t> seeds;
         for (int64_t mesh = 0; mesh < 3; ++mesh)

@@ -6,6 +6,7 @@
 
 #include "pumeta/core/error.h"
 #include "pumeta/data/patch_set.h"
+#include "pumeta/geometry/sampling.h"
 #include "support/test_util.h"
 
 namespace pumeta {
@@ -16,7 +17,7 @@ PatchSet small_set() {
     PatchSet set;
     set.ratio = 2;
     set.patch_points = 16;
-    set.points = test::random_points(40 + 60 + 35, 5);
+    set.points = uniform_random_points(40 + 60 + 35, 5);
     set.offsets = at::tensor({int64_t{0}, int64_t{40}, int64_t{100}, int64_t{135}});
     std::vector<int64_t> seeds;
     for (int64_t mesh = 0; mesh < 3; ++mesh)

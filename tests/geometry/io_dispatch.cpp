@@ -8,6 +8,7 @@
 
 #include "geometry/io_test_util.h"
 #include "pumeta/geometry/io.h"
+#include "pumeta/geometry/sampling.h"
 #include "support/test_util.h"
 
 namespace pumeta {
@@ -191,7 +192,7 @@ TEST(IoDispatch, WritesAreAtomicAndLeaveNoTemporaryFiles) {
     test::TempDir dir;
     const std::string path = dir.file("cloud.ply");
     test::write_file(path, "old content");
-    const at::Tensor points = test::random_points(100, 3);
+    const at::Tensor points = uniform_random_points(100, 3);
     write_point_cloud(path, {points, {}, {}});
     EXPECT_TRUE(at::equal(read_point_cloud(path).points, points));
     EXPECT_EQ(std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator()), 1);
@@ -233,7 +234,7 @@ TEST(IoDispatch, WriteGeometryPicksMeshOrCloudAndAcceptsNonContiguousTensors) {
 // never another exception, a crash or a hang.
 TEST(IoDispatch, CorruptedFilesLoadOrThrowInputError) {
     test::TempDir dir;
-    const PointCloud cloud{test::random_points(12, 31), test::random_points(12, 32),
+    const PointCloud cloud{uniform_random_points(12, 31), uniform_random_points(12, 32),
                            (at::arange(36, at::kLong) * 7 % 256).to(at::kByte).view({12, 3})};
     const at::Tensor faces = (at::arange(30, at::kLong) * 5 % 12).view({10, 3});
     std::vector<std::string> originals;

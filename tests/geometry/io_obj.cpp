@@ -3,6 +3,7 @@
 
 #include "geometry/io_test_util.h"
 #include "pumeta/geometry/io.h"
+#include "pumeta/geometry/sampling.h"
 #include "support/test_util.h"
 
 namespace pumeta {
@@ -14,7 +15,7 @@ using test::throws_input_error;
 
 TEST(IoObj, MeshRoundTrips) {
     test::TempDir dir;
-    const TriangleMesh mesh{test::random_points(40, 8),
+    const TriangleMesh mesh{uniform_random_points(40, 8),
                             (at::arange(180, at::kLong) * 11 % 40).view({60, 3})};
     write_mesh(dir.file("m.obj"), mesh);
     const TriangleMesh back = read_mesh(dir.file("m.obj"));

@@ -3,6 +3,7 @@
 
 #include "geometry/io_test_util.h"
 #include "pumeta/geometry/io.h"
+#include "pumeta/geometry/sampling.h"
 #include "support/test_util.h"
 
 namespace pumeta {
@@ -14,14 +15,14 @@ using test::throws_input_error;
 
 TEST(IoOff, MeshAndCloudRoundTrip) {
     test::TempDir dir;
-    const TriangleMesh mesh{test::random_points(50, 5),
+    const TriangleMesh mesh{uniform_random_points(50, 5),
                             (at::arange(240, at::kLong) * 7 % 50).view({80, 3})};
     write_mesh(dir.file("m.off"), mesh);
     const TriangleMesh back = read_mesh(dir.file("m.off"));
     EXPECT_TRUE(at::equal(back.vertices, mesh.vertices));
     EXPECT_TRUE(at::equal(back.faces, mesh.faces));
 
-    const at::Tensor points = test::random_points(20, 6);
+    const at::Tensor points = uniform_random_points(20, 6);
     write_point_cloud(dir.file("c.off"), {points, {}, {}});
     const Geometry cloud = read_geometry(dir.file("c.off"));
     EXPECT_TRUE(at::equal(cloud.cloud.points, points));

@@ -3,6 +3,7 @@
 
 #include "geometry/io_test_util.h"
 #include "pumeta/geometry/io.h"
+#include "pumeta/geometry/sampling.h"
 #include "support/test_util.h"
 
 namespace pumeta {
@@ -19,7 +20,7 @@ at::Tensor colors(const std::vector<int>& values) {
 TEST(IoPcd, RoundTripsInBinaryAndAscii) {
     test::TempDir dir;
     const int64_t n = 200;
-    const PointCloud cloud{test::random_points(n, 21), test::random_points(n, 22),
+    const PointCloud cloud{uniform_random_points(n, 21), uniform_random_points(n, 22),
                            (at::arange(3 * n, at::kLong) * 53 % 256).to(at::kByte).view({n, 3})};
     for (bool binary : {true, false}) {
         const std::string path = dir.file(binary ? "b.pcd" : "a.pcd");

@@ -3,6 +3,7 @@
 
 #include "geometry/io_test_util.h"
 #include "pumeta/geometry/io.h"
+#include "pumeta/geometry/sampling.h"
 #include "support/test_util.h"
 
 namespace pumeta {
@@ -15,8 +16,8 @@ using test::throws_input_error;
 
 PointCloud random_cloud(int64_t n, uint64_t seed) {
     PointCloud cloud;
-    cloud.points = test::random_points(n, seed);
-    cloud.normals = test::random_points(n, seed + 1);
+    cloud.points = uniform_random_points(n, seed);
+    cloud.normals = uniform_random_points(n, seed + 1);
     cloud.colors = (at::arange(3 * n, at::kLong) * 37 % 256).to(at::kByte).view({n, 3});
     return cloud;
 }

@@ -3,6 +3,7 @@
 
 #include "geometry/io_test_util.h"
 #include "pumeta/geometry/io.h"
+#include "pumeta/geometry/sampling.h"
 #include "support/test_util.h"
 
 namespace pumeta {
@@ -13,7 +14,7 @@ using test::throws_input_error;
 
 TEST(IoXyz, RoundTripsPointsAndNormalsBitExactly) {
     test::TempDir dir;
-    PointCloud cloud{test::random_points(300, 11), test::random_points(300, 12), {}};
+    PointCloud cloud{uniform_random_points(300, 11), uniform_random_points(300, 12), {}};
     // Values whose shortest decimal forms are long or use exponents.
     cloud.points[0][0] = 1e-30f;
     cloud.points[0][1] = -3.4028235e38f;

@@ -5,13 +5,14 @@
 #include <gtest/gtest.h>
 
 #include "pumeta/core/error.h"
+#include "pumeta/geometry/sampling.h"
 #include "support/test_util.h"
 
 namespace pumeta {
 namespace {
 
 TEST(KdtreePartition, PartsAreSmallDisjointAndCoverTheCloud) {
-    at::Tensor points = test::random_points(10007, 1);
+    at::Tensor points = uniform_random_points(10007, 1);
     for (int64_t limit : {1, 100, 2500, 10007, 70000}) {
         auto parts = kdtree_partition(points, limit);
         at::Tensor hits = at::zeros({points.size(0)}, at::kLong);
@@ -27,7 +28,7 @@ TEST(KdtreePartition, PartsAreSmallDisjointAndCoverTheCloud) {
 
 TEST(KdtreePartition, SplitsAtTheMedianOfTheWidestAxis) {
     // Stretched along y: the first split is a plane y = median, halves of equal size.
-    at::Tensor points = test::random_points(1000, 2) * at::tensor({1.0f, 10.0f, 1.0f});
+    at::Tensor points = uniform_random_points(1000, 2) * at::tensor({1.0f, 10.0f, 1.0f});
     auto parts = kdtree_partition(points, 500);
     ASSERT_EQ(parts.size(), 2u);
     EXPECT_EQ(parts[0].numel(), 500);
@@ -41,7 +42,7 @@ TEST(KdtreePartition, SplitsAtTheMedianOfTheWidestAxis) {
 }
 
 TEST(KdtreePartition, RejectsInvalidLimits) {
-    EXPECT_THROW(kdtree_partition(test::random_points(10, 3), 0), InputError);
+    EXPECT_THROW(kdtree_partition(uniform_random_points(10, 3), 0), InputError);
 }
 
 }  // namespace

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "pumeta/core/error.h"
+#include "pumeta/geometry/sampling.h"
 #include "support/test_util.h"
 
 namespace pumeta {
@@ -87,8 +88,8 @@ at::Tensor shuffled_grid(int64_t n, uint64_t seed) {
 }
 
 TEST(KdTree, MatchesDoubleOracleOnRandomPoints) {
-    at::Tensor points = test::random_points(2000, 1);
-    at::Tensor queries = test::random_points(300, 2) * 1.2;
+    at::Tensor points = uniform_random_points(2000, 1);
+    at::Tensor queries = uniform_random_points(300, 2) * 1.2;
     KdTree tree(points);
     EXPECT_EQ(tree.size(), 2000);
     for (int64_t k : {1, 7, 16, 64})
@@ -112,7 +113,7 @@ TEST(KdTree, BreaksTiesByIndex) {
 }
 
 TEST(KdTree, FirstNeighbourOfEachPointIsItself) {
-    at::Tensor points = test::random_points(1000, 4);
+    at::Tensor points = uniform_random_points(1000, 4);
     KnnResult result = KdTree(points).query(points, 3);
     EXPECT_TRUE(at::equal(result.indices.select(1, 0), at::arange(1000)));
     EXPECT_TRUE(at::equal(result.sq_distances.select(1, 0), at::zeros({1000})));
@@ -120,8 +121,8 @@ TEST(KdTree, FirstNeighbourOfEachPointIsItself) {
 }
 
 TEST(KdTree, SameResultWithOneThreadAndFromConcurrentCallers) {
-    at::Tensor points = test::random_points(5000, 5);
-    at::Tensor queries = test::random_points(4000, 6);
+    at::Tensor points = uniform_random_points(5000, 5);
+    at::Tensor queries = uniform_random_points(4000, 6);
     KdTree tree(points);
     KnnResult parallel = tree.query(queries, 8);
     const int threads = at::get_num_threads();
@@ -143,8 +144,8 @@ TEST(KdTree, SameResultWithOneThreadAndFromConcurrentCallers) {
 }
 
 TEST(KdTree, SurvivesMoveAndOwnsItsCopyOfThePoints) {
-    at::Tensor points = test::random_points(300, 7);
-    at::Tensor queries = test::random_points(50, 8);
+    at::Tensor points = uniform_random_points(300, 7);
+    at::Tensor queries = uniform_random_points(50, 8);
     KdTree original(points);
     KnnResult before = original.query(queries, 4);
     points.zero_();
@@ -160,23 +161,23 @@ TEST(KdTree, RejectsBadInput) {
     EXPECT_THROW(KdTree(at::zeros({0, 3})), InputError);
     EXPECT_THROW(KdTree(at::zeros({5, 2})), InputError);
     EXPECT_THROW(KdTree(at::zeros({5, 3}, at::kDouble)), InputError);
-    KdTree tree(test::random_points(10, 9));
-    EXPECT_THROW(tree.query(test::random_points(3, 1), 0), InputError);
-    EXPECT_THROW(tree.query(test::random_points(3, 1), 11), InputError);
+    KdTree tree(uniform_random_points(10, 9));
+    EXPECT_THROW(tree.query(uniform_random_points(3, 1), 0), InputError);
+    EXPECT_THROW(tree.query(uniform_random_points(3, 1), 11), InputError);
     EXPECT_THROW(tree.query(at::zeros({3, 4}), 1), InputError);
     KnnResult empty = tree.query(at::zeros({0, 3}), 2);
     EXPECT_EQ(empty.indices.sizes(), (at::IntArrayRef{0, 2}));
 }
 
 TEST(KnnBruteForce, MatchesDoubleOracle) {
-    at::Tensor points = test::random_points(700, 10);
-    at::Tensor queries = test::random_points(200, 11);
+    at::Tensor points = uniform_random_points(700, 10);
+    at::Tensor queries = uniform_random_points(200, 11);
     for (int64_t k : {1, 16})
         expect_matches_oracle(knn_brute_force(points, queries, k), points, queries, k);
 }
 
 TEST(KnnBruteForce, AgreesWithKdTreeBitForBitIncludingTies) {
-    for (const at::Tensor& points : {test::random_points(1500, 12), shuffled_grid(9, 13)}) {
+    for (const at::Tensor& points : {uniform_random_points(1500, 12), shuffled_grid(9, 13)}) {
         at::Tensor queries = at::cat({points.slice(0, 0, 300), points.slice(0, 300, 400) + 0.5});
         for (int64_t k : {1, 6, 27}) {
             KnnResult tree = KdTree(points).query(queries, k);
@@ -189,8 +190,8 @@ TEST(KnnBruteForce, AgreesWithKdTreeBitForBitIncludingTies) {
 
 TEST(KnnBruteForce, ChunkedQueriesGiveTheSameAnswer) {
     // 4096 x 3000 pairs exceed one block of the brute force: several chunks.
-    at::Tensor points = test::random_points(4096, 14);
-    at::Tensor queries = test::random_points(3000, 15);
+    at::Tensor points = uniform_random_points(4096, 14);
+    at::Tensor queries = uniform_random_points(3000, 15);
     KnnResult brute = knn_brute_force(points, queries, 5);
     KnnResult tree = KdTree(points).query(queries, 5);
     EXPECT_TRUE(at::equal(tree.indices, brute.indices));
@@ -198,9 +199,9 @@ TEST(KnnBruteForce, ChunkedQueriesGiveTheSameAnswer) {
 }
 
 TEST(KnnBruteForce, BatchedEqualsEachElementAlone) {
-    at::Tensor points = at::stack({test::random_points(400, 16), test::random_points(400, 17),
+    at::Tensor points = at::stack({uniform_random_points(400, 16), uniform_random_points(400, 17),
                                    shuffled_grid(8, 18).slice(0, 0, 400)});
-    at::Tensor queries = at::stack({test::random_points(90, 19), test::random_points(90, 20),
+    at::Tensor queries = at::stack({uniform_random_points(90, 19), uniform_random_points(90, 20),
                                     shuffled_grid(8, 21).slice(0, 0, 90) + 0.5});
     KnnResult batched = knn_brute_force(points, queries, 9);
     ASSERT_EQ(batched.indices.sizes(), (at::IntArrayRef{3, 90, 9}));
@@ -212,7 +213,7 @@ TEST(KnnBruteForce, BatchedEqualsEachElementAlone) {
 }
 
 TEST(KnnBruteForce, RejectsBadInput) {
-    at::Tensor points = test::random_points(10, 22);
+    at::Tensor points = uniform_random_points(10, 22);
     EXPECT_THROW(knn_brute_force(points, points, 11), InputError);
     EXPECT_THROW(knn_brute_force(points.unsqueeze(0), points, 2), InputError);
     EXPECT_THROW(knn_brute_force(points.unsqueeze(0).expand({2, 10, 3}),
@@ -225,21 +226,21 @@ TEST(KnnBruteForce, RejectsBadInput) {
 
 TEST(Knn, MatchesTheOracleFromOnePointToMany) {
     for (int64_t n : {1, 60, 3000}) {
-        at::Tensor points = test::random_points(n, 23);
-        at::Tensor queries = test::random_points(400, 24);
+        at::Tensor points = uniform_random_points(n, 23);
+        at::Tensor queries = uniform_random_points(400, 24);
         const int64_t k = std::min<int64_t>(n, 4);
         expect_matches_oracle(knn(points, queries, k), points, queries, k);
     }
-    at::Tensor small = test::random_points(60, 25);
+    at::Tensor small = uniform_random_points(60, 25);
     EXPECT_THROW(knn(small, small, 61), InputError);
     EXPECT_THROW(knn(small, small, 0), InputError);
 }
 
 TEST(Knn, BatchedOnCpuEqualsTheBruteForce) {
     at::Tensor points =
-        at::stack({test::random_points(300, 26), shuffled_grid(7, 27).slice(0, 0, 300)});
+        at::stack({uniform_random_points(300, 26), shuffled_grid(7, 27).slice(0, 0, 300)});
     at::Tensor queries =
-        at::stack({test::random_points(120, 28), shuffled_grid(5, 29).slice(0, 0, 120) + 0.5});
+        at::stack({uniform_random_points(120, 28), shuffled_grid(5, 29).slice(0, 0, 120) + 0.5});
     KnnResult trees = knn(points, queries, 10);
     KnnResult brute = knn_brute_force(points, queries, 10);
     ASSERT_EQ(trees.indices.sizes(), (at::IntArrayRef{2, 120, 10}));
@@ -250,8 +251,8 @@ TEST(Knn, BatchedOnCpuEqualsTheBruteForce) {
 
 TEST(Knn, WorksOnCudaWhenAvailable) {
     if (!at::hasCUDA()) GTEST_SKIP() << "no CUDA device";
-    at::Tensor points = test::random_points(3000, 30);
-    at::Tensor queries = test::random_points(500, 31);
+    at::Tensor points = uniform_random_points(3000, 30);
+    at::Tensor queries = uniform_random_points(500, 31);
     KnnResult cpu = knn_brute_force(points, queries, 8);
     KnnResult gpu = knn(points.cuda(), queries.cuda(), 8);
     EXPECT_TRUE(at::equal(cpu.indices, gpu.indices.cpu()));

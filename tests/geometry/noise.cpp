@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "pumeta/core/error.h"
+#include "pumeta/geometry/sampling.h"
 #include "support/test_util.h"
 
 namespace pumeta {
@@ -11,7 +12,7 @@ namespace {
 
 /// 100k points with very different spreads per axis (sd about 1.15, 0.29, 0.058).
 at::Tensor anisotropic_cloud() {
-    return test::random_points(100000, 1) * at::tensor({2.f, 0.5f, 0.1f}) +
+    return uniform_random_points(100000, 1) * at::tensor({2.f, 0.5f, 0.1f}) +
            at::tensor({5.f, -1.f, 0.f});
 }
 

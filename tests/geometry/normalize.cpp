@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "pumeta/core/error.h"
+#include "pumeta/geometry/sampling.h"
 #include "support/test_util.h"
 
 namespace pumeta {
@@ -11,7 +12,7 @@ namespace {
 
 /// An anisotropic, off-centre cloud: centroid and bounding-box centre differ.
 at::Tensor skewed_cloud() {
-    at::Tensor points = test::random_points(2000, 1);
+    at::Tensor points = uniform_random_points(2000, 1);
     points.select(1, 0).add_(1).pow_(3).mul_(4).add_(10);
     points.select(1, 1).mul_(0.5).sub_(3);
     return points;

@@ -18,7 +18,7 @@ double covering_radius(const at::Tensor& cloud, const at::Tensor& seeds) {
 }
 
 TEST(ExtractPatches, SmallCloudsTakeFpsSeedsOverTheWholeCloud) {
-    at::Tensor cloud = test::random_points(1000, 3);
+    at::Tensor cloud = uniform_random_points(1000, 3);
     Patches patches = extract_patches(cloud, {.patch_size = 64, .coverage = 3.0});
     EXPECT_EQ(patches.seeds.numel(), 47);  // ceil(1000 / 64 · 3)
     EXPECT_TRUE(at::equal(patches.seeds, farthest_point_sampling(cloud, 47, 0)));
@@ -27,7 +27,7 @@ TEST(ExtractPatches, SmallCloudsTakeFpsSeedsOverTheWholeCloud) {
 }
 
 TEST(ExtractPatches, LargeCloudsTakeSeedsPartByPartAsEvenlyAsWholeCloudFps) {
-    at::Tensor cloud = test::random_points(6000, 4);
+    at::Tensor cloud = uniform_random_points(6000, 4);
     PatchOptions options{.patch_size = 64, .coverage = 3.0, .fps_part_points = 1000};
     Patches patches = extract_patches(cloud, options);
     const int64_t count = 282;  // ceil(6000 / 64 · 3)

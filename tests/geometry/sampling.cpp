@@ -47,8 +47,21 @@ std::vector<int64_t> to_vector(const at::Tensor& indices) {
     return {cpu.data_ptr<int64_t>(), cpu.data_ptr<int64_t>() + cpu.numel()};
 }
 
+TEST(UniformRandomPoints, FillTheCubeAndRepeatPerSeed) {
+    at::Tensor a = uniform_random_points(20000, 5);
+    ASSERT_EQ(a.sizes(), (at::IntArrayRef{20000, 3}));
+    EXPECT_EQ(a.scalar_type(), at::kFloat);
+    EXPECT_LE(a.abs().max().item<float>(), 1.f);
+    // Uniform on [-1, 1]: per coordinate mean 0 and variance 1/3, within sampling error.
+    EXPECT_LT(a.mean(0).abs().max().item<float>(), 0.02f);
+    EXPECT_LT((a.var(0) - 1.0 / 3).abs().max().item<float>(), 0.02f);
+    EXPECT_TRUE(a.equal(uniform_random_points(20000, 5)));
+    EXPECT_FALSE(a.equal(uniform_random_points(20000, 6)));
+    EXPECT_THROW(uniform_random_points(-1, 5), InputError);
+}
+
 TEST(FarthestPointSampling, EqualsTheTextbookAlgorithm) {
-    at::Tensor points = test::random_points(2000, 1);
+    at::Tensor points = uniform_random_points(2000, 1);
     for (int64_t start : {0, 17, 1999})
         EXPECT_EQ(to_vector(farthest_point_sampling(points, 150, start)),
                   naive_fps<float>(points, 150, start));
@@ -56,7 +69,7 @@ TEST(FarthestPointSampling, EqualsTheTextbookAlgorithm) {
 
 TEST(FarthestPointSampling, ParallelPathEqualsTheTextbookAlgorithm) {
     // More points than one parallel chunk.
-    at::Tensor points = test::random_points(40000, 2);
+    at::Tensor points = uniform_random_points(40000, 2);
     EXPECT_EQ(to_vector(farthest_point_sampling(points, 25, 5)), naive_fps<float>(points, 25, 5));
 }
 
@@ -68,7 +81,7 @@ TEST(FarthestPointSampling, TiesGoToTheSmallerIndex) {
 }
 
 TEST(FarthestPointSampling, AllPointsGivesAPermutationAndBadInputThrows) {
-    at::Tensor points = test::random_points(300, 3);
+    at::Tensor points = uniform_random_points(300, 3);
     std::vector<int64_t> all = to_vector(farthest_point_sampling(points, 300, 7));
     EXPECT_EQ(all.front(), 7);
     EXPECT_EQ(std::set<int64_t>(all.begin(), all.end()).size(), 300u);
@@ -80,8 +93,8 @@ TEST(FarthestPointSampling, AllPointsGivesAPermutationAndBadInputThrows) {
 }
 
 TEST(FarthestPointSampling, BatchedEqualsEachElement) {
-    at::Tensor points = at::stack(
-        {test::random_points(500, 4), test::random_points(500, 5), test::random_points(500, 6)});
+    at::Tensor points = at::stack({uniform_random_points(500, 4), uniform_random_points(500, 5),
+                                   uniform_random_points(500, 6)});
     at::Tensor batched = farthest_point_sampling_batched(points, 120);
     ASSERT_EQ(batched.sizes(), (at::IntArrayRef{3, 120}));
     for (int64_t b = 0; b < 3; ++b)
@@ -94,7 +107,7 @@ TEST(FarthestPointSampling, BatchedEqualsEachElement) {
 TEST(FarthestPointSampling, BatchedTensorPathEqualsTheTextbookAlgorithm) {
     // float64 input takes the tensor-op path (the one GPUs use).
     at::Tensor points =
-        at::stack({test::random_points(400, 7), test::random_points(400, 8)}).to(at::kDouble);
+        at::stack({uniform_random_points(400, 7), uniform_random_points(400, 8)}).to(at::kDouble);
     at::Tensor batched = farthest_point_sampling_batched(points, 60);
     for (int64_t b = 0; b < 2; ++b)
         EXPECT_EQ(to_vector(batched[b]), naive_fps<double>(points[b], 60, 0));
@@ -102,7 +115,7 @@ TEST(FarthestPointSampling, BatchedTensorPathEqualsTheTextbookAlgorithm) {
 
 TEST(FarthestPointSampling, BatchedOnCudaEqualsTheCpu) {
     if (!at::hasCUDA()) GTEST_SKIP() << "no CUDA device";
-    at::Tensor points = at::stack({test::random_points(700, 9), test::random_points(700, 10)});
+    at::Tensor points = at::stack({uniform_random_points(700, 9), uniform_random_points(700, 10)});
     EXPECT_TRUE(at::equal(farthest_point_sampling_batched(points.cuda(), 90).cpu(),
                           farthest_point_sampling_batched(points, 90)));
 }

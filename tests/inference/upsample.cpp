@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include "pumeta/core/error.h"
+#include "pumeta/geometry/sampling.h"
 #include "pumeta/metrics/metrics.h"
 #include "support/test_util.h"
 
@@ -23,7 +24,7 @@ std::unique_ptr<Backbone> small_pugcn(int64_t ratio) {
 
 /// Points on the unit sphere (a surface, so patches are meaningful).
 at::Tensor sphere_points(int64_t n, uint64_t seed) {
-    at::Tensor p = test::random_points(n, seed);
+    at::Tensor p = uniform_random_points(n, seed);
     return p / p.norm(2, 1, true);
 }
 

@@ -8,6 +8,7 @@
 
 #include <cmath>
 
+#include "pumeta/geometry/sampling.h"
 #include "pumeta/nn/gradients.h"
 #include "support/test_util.h"
 
@@ -35,7 +36,7 @@ struct Tasks {
 };
 
 Tasks tiny_tasks(int64_t count, bool double_precision) {
-    at::Tensor y = test::random_points(count * 32, 11).view({count, 32, 3});
+    at::Tensor y = uniform_random_points(count * 32, 11).view({count, 32, 3});
     at::Tensor x = y.slice(1, 0, 32, 2);  // every other point: a 2x task
     if (double_precision) return {x.to(at::kDouble), y.to(at::kDouble)};
     return {x.contiguous(), y.contiguous()};

@@ -7,6 +7,7 @@
 
 #include "metrics/metric_oracles.h"
 #include "pumeta/core/error.h"
+#include "pumeta/geometry/sampling.h"
 #include "pumeta/metrics/metrics.h"
 #include "support/test_util.h"
 
@@ -23,8 +24,8 @@ TEST(Chamfer, MatchesBruteForceOnRandomCloudsOfDifferentSizes) {
         {1, 1}, {1, 50}, {37, 5}, {200, 350}, {1000, 700}};
     uint64_t seed = 1;
     for (auto [n_pred, n_gt] : sizes) {
-        at::Tensor pred = test::random_points(n_pred, seed++);
-        at::Tensor gt = test::random_points(n_gt, seed++);
+        at::Tensor pred = uniform_random_points(n_pred, seed++);
+        at::Tensor gt = uniform_random_points(n_gt, seed++);
         std::vector<double> forward = brute_force_sq_distances(pred, gt);
         std::vector<double> backward = brute_force_sq_distances(gt, pred);
         SCOPED_TRACE(testing::Message() << n_pred << " vs " << n_gt << " points");
@@ -54,15 +55,15 @@ TEST(Chamfer, HandComputedFixture) {
 }
 
 TEST(Chamfer, IdenticalCloudsGiveZero) {
-    at::Tensor points = test::random_points(300, 7);
+    at::Tensor points = uniform_random_points(300, 7);
     EXPECT_EQ(chamfer_distance(points, points), 0.0);
     EXPECT_EQ(hausdorff_distance(points, points), 0.0);
     EXPECT_EQ(hausdorff_distance_legacy(points, points), 0.0);
 }
 
 TEST(Chamfer, InvariantToPointOrder) {
-    at::Tensor pred = test::random_points(500, 11);
-    at::Tensor gt = test::random_points(400, 12);
+    at::Tensor pred = uniform_random_points(500, 11);
+    at::Tensor gt = uniform_random_points(400, 12);
     at::Tensor pred_perm = test::permuted(pred, 13);
     at::Tensor gt_perm = test::permuted(gt, 14);
     EXPECT_NEAR(chamfer_distance(pred_perm, gt_perm), chamfer_distance(pred, gt), 1e-14);
@@ -71,7 +72,7 @@ TEST(Chamfer, InvariantToPointOrder) {
 }
 
 TEST(Chamfer, RejectsEmptyCloudsAndWrongShapes) {
-    at::Tensor points = test::random_points(10, 3);
+    at::Tensor points = uniform_random_points(10, 3);
     EXPECT_THROW(chamfer_distance(at::empty({0, 3}), points), InputError);
     EXPECT_THROW(chamfer_distance(points, at::empty({0, 3})), InputError);
     EXPECT_THROW(hausdorff_distance(at::zeros({4, 2}), points), InputError);

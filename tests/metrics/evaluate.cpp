@@ -7,6 +7,7 @@
 
 #include "metrics/metric_oracles.h"
 #include "pumeta/core/error.h"
+#include "pumeta/geometry/sampling.h"
 #include "pumeta/metrics/metrics.h"
 #include "support/test_util.h"
 
@@ -62,8 +63,8 @@ TEST(Evaluate, HandComputedFixtureInGroundTruthFrame) {
 }
 
 TEST(Evaluate, InvariantToTranslationScaleAndPointOrder) {
-    at::Tensor gt = test::random_points(600, 1) * at::tensor({1.f, 0.5f, 0.2f});
-    at::Tensor pred = test::random_points(900, 2) * at::tensor({1.1f, 0.5f, 0.25f});
+    at::Tensor gt = uniform_random_points(600, 1) * at::tensor({1.f, 0.5f, 0.2f});
+    at::Tensor pred = uniform_random_points(900, 2) * at::tensor({1.1f, 0.5f, 0.25f});
     // Triangles over consecutive GT points, in GT's coordinates like a real mesh.
     TriangleMesh mesh{gt, at::arange(600, at::kLong).view({200, 3})};
     MetricReport report = evaluate(pred, gt, &mesh);
@@ -82,7 +83,7 @@ TEST(Evaluate, InvariantToTranslationScaleAndPointOrder) {
 // The prediction is measured in GT's frame, never normalised on its own: a prediction twice
 // too large would score perfectly otherwise.
 TEST(Evaluate, PredictionIsNotNormalisedOnItsOwn) {
-    at::Tensor gt = test::random_points(300, 5);
+    at::Tensor gt = uniform_random_points(300, 5);
     at::Tensor centered = gt - (std::get<0>(gt.min(0)) + std::get<0>(gt.max(0))) / 2;
     EXPECT_EQ(evaluate(centered, centered).cd, 0.0);
     EXPECT_GT(evaluate(centered * 2.f, centered).cd, 0.1);
@@ -90,7 +91,7 @@ TEST(Evaluate, PredictionIsNotNormalisedOnItsOwn) {
 }
 
 TEST(Evaluate, RejectsEmptyCloudsWrongShapesAndBadMeshes) {
-    at::Tensor points = test::random_points(10, 3);
+    at::Tensor points = uniform_random_points(10, 3);
     EXPECT_THROW(evaluate(at::empty({0, 3}), points), InputError);
     EXPECT_THROW(evaluate(points, at::empty({0, 3})), InputError);
     EXPECT_THROW(evaluate(points.view({5, 6}), points), InputError);

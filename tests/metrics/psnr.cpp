@@ -8,6 +8,7 @@
 
 #include "metrics/metric_oracles.h"
 #include "pumeta/core/error.h"
+#include "pumeta/geometry/sampling.h"
 #include "pumeta/metrics/metrics.h"
 #include "support/test_util.h"
 
@@ -70,7 +71,7 @@ TEST(Psnr, DuplicatePointsAreMergedAsPcErrorDoes) {
 }
 
 TEST(Psnr, IdenticalCloudsAreInfinite) {
-    at::Tensor points = test::random_points(200, 5);
+    at::Tensor points = uniform_random_points(200, 5);
     EXPECT_EQ(psnr_d1(points, points), kInf);
     // Same set of points, different multiplicities: still identical after merging.
     EXPECT_EQ(psnr_d1(at::cat({points, points.slice(0, 0, 50)}), points), kInf);
@@ -78,9 +79,9 @@ TEST(Psnr, IdenticalCloudsAreInfinite) {
 
 TEST(Psnr, MatchesIndependentOracleOnRandomClouds) {
     for (uint64_t seed : {1, 2, 3}) {
-        at::Tensor gt = test::random_points(300 + 100 * seed, seed);
+        at::Tensor gt = uniform_random_points(300 + 100 * seed, seed);
         // Duplicates in both clouds, and a prediction reaching outside the GT's box.
-        at::Tensor pred = test::random_points(250, 100 + seed) * 1.2f;
+        at::Tensor pred = uniform_random_points(250, 100 + seed) * 1.2f;
         pred = at::cat({pred, pred.slice(0, 0, 40)});
         gt = at::cat({gt, gt.slice(0, 10, 30)});
         expect_relative_near(psnr_d1(pred, gt), oracle_psnr(pred, gt), 1e-9);
@@ -88,8 +89,8 @@ TEST(Psnr, MatchesIndependentOracleOnRandomClouds) {
 }
 
 TEST(Psnr, InvariantToPointOrderTranslationAndScale) {
-    at::Tensor gt = test::random_points(400, 21);
-    at::Tensor pred = gt + 0.05f * test::random_points(400, 22);
+    at::Tensor gt = uniform_random_points(400, 21);
+    at::Tensor pred = gt + 0.05f * uniform_random_points(400, 22);
     double reference = psnr_d1(pred, gt);
     EXPECT_NEAR(psnr_d1(test::permuted(pred, 1), test::permuted(gt, 2)), reference, 1e-9);
     at::Tensor offset = at::tensor({10.f, -3.f, 7.f});
@@ -106,7 +107,7 @@ TEST(Psnr, SinglePointGroundTruthIsOnlyTranslated) {
 }
 
 TEST(Psnr, RejectsEmptyCloudsAndWrongShapes) {
-    at::Tensor points = test::random_points(10, 3);
+    at::Tensor points = uniform_random_points(10, 3);
     EXPECT_THROW(psnr_d1(at::empty({0, 3}), points), InputError);
     EXPECT_THROW(psnr_d1(points, at::empty({0, 3})), InputError);
     EXPECT_THROW(psnr_d1(points.view({30}), points), InputError);

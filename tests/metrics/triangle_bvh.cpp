@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "pumeta/core/error.h"
+#include "pumeta/geometry/sampling.h"
 #include "pumeta/metrics/metrics.h"
 #include "support/test_util.h"
 
@@ -154,7 +155,7 @@ TEST(PointTriangleDistance, DegenerateTrianglesBehaveAsSegmentsOrPoints) {
 /// indices, collinear corners, and many copies of one triangle (identical centroids).
 TriangleMesh random_mesh(int64_t num_faces, uint64_t seed) {
     const int64_t num_vertices = num_faces / 2 + 8;
-    at::Tensor vertices = test::random_points(num_vertices, seed);
+    at::Tensor vertices = uniform_random_points(num_vertices, seed);
     std::mt19937_64 rng(seed);
     std::uniform_int_distribution<int64_t> pick(0, num_vertices - 1);
     std::vector<int64_t> faces;
@@ -194,13 +195,13 @@ std::vector<double> brute_force_mesh_distances(const TriangleMesh& mesh,
 // The brute force uses point_triangle_distance too (checked above against independent
 // oracles): what this test checks is the hierarchy's pruning.
 TEST(TriangleBvh, MatchesBruteForceOverAllTriangles) {
-    const TriangleMesh single_triangle{test::random_points(3, 99),
+    const TriangleMesh single_triangle{uniform_random_points(3, 99),
                                        at::tensor({0, 1, 2}, at::kLong).view({1, 3})};
     for (const TriangleMesh& mesh : {single_triangle, random_mesh(5, 105), random_mesh(300, 400)}) {
         // Queries near the mesh, far from it, and on the corners of its triangles.
         at::Tensor corners = mesh.vertices.index_select(0, mesh.faces.flatten());
         at::Tensor queries = at::cat(
-            {test::random_points(400, 3) * 1.5f, test::random_points(20, 4) * 10.f, corners});
+            {uniform_random_points(400, 3) * 1.5f, uniform_random_points(20, 4) * 10.f, corners});
         at::Tensor d = TriangleBvh(mesh).distances(queries);
         ASSERT_EQ(d.scalar_type(), at::kDouble);
         ASSERT_EQ(d.size(0), queries.size(0));
@@ -237,7 +238,7 @@ TEST(PointToFaceDistance, HandComputedSquare) {
 
 TEST(PointToFaceDistance, IsTheMeanOfBruteForceDistances) {
     TriangleMesh mesh = random_mesh(200, 9);
-    at::Tensor pred = test::random_points(300, 10);
+    at::Tensor pred = uniform_random_points(300, 10);
     std::vector<double> expected = brute_force_mesh_distances(mesh, pred);
     double mean = 0;
     for (double d : expected) mean += d / expected.size();

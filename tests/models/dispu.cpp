@@ -10,6 +10,7 @@
 #include <cmath>
 
 #include "pumeta/core/error.h"
+#include "pumeta/geometry/sampling.h"
 #include "pumeta/inference/upsample.h"
 #include "pumeta/meta/maml.h"
 #include "pumeta/models/checkpoint.h"
@@ -432,7 +433,7 @@ TEST(DisPu, CheckpointsWithMissingOrForeignBuffersAreInputErrors) {
 }
 
 TEST(DisPu, WholeCloudUpsamplingGivesExactlyRatioTimesInputPoints) {
-    at::Tensor cloud = test::random_points(300, 17);
+    at::Tensor cloud = uniform_random_points(300, 17);
     cloud = cloud / cloud.norm(2, 1, true);  // a sphere: a surface to cut patches from
     std::unique_ptr<Backbone> x4 = make_backbone(tiny_dispu_config(4));
     std::unique_ptr<Backbone> x8 = make_backbone(tiny_dispu_config(8));

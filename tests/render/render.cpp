@@ -8,6 +8,7 @@
 #include <filesystem>
 
 #include "pumeta/core/error.h"
+#include "pumeta/geometry/sampling.h"
 #include "support/test_util.h"
 
 namespace pumeta {
@@ -59,7 +60,7 @@ TEST(Render, ImageHasTheRequestedSizeAndAWhiteBackground) {
     RenderOptions options;
     options.width = 320;
     options.height = 200;
-    Image image = render_image(test::random_points(500, 1), options);
+    Image image = render_image(uniform_random_points(500, 1), options);
     EXPECT_EQ(image.width, 320);
     EXPECT_EQ(image.height, 200);
     ASSERT_EQ(image.rgb.size(), 320u * 200 * 3);
@@ -178,7 +179,7 @@ TEST(Render, PerspectiveShrinksFartherObjects) {
 }
 
 TEST(Render, AutoFitFillsTheImageInvariantToSimilarity) {
-    at::Tensor sphere = test::random_points(4000, 2);
+    at::Tensor sphere = uniform_random_points(4000, 2);
     sphere = sphere / sphere.norm(2, 1, true);
     RenderOptions options;
     options.margin = 0.1;
@@ -206,7 +207,7 @@ TEST(Render, PerPointColoursAreDrawnAndOutputIsDeterministic) {
     EXPECT_EQ(centre[0], 51);
     EXPECT_EQ(centre[1], 102);
     EXPECT_EQ(centre[2], 153);
-    at::Tensor cloud = test::random_points(3000, 9);
+    at::Tensor cloud = uniform_random_points(3000, 9);
     Image a = render_image(cloud, RenderOptions{}), b = render_image(cloud, RenderOptions{});
     EXPECT_EQ(a.rgb, b.rgb);
 }
@@ -217,7 +218,7 @@ TEST(Render, PngFilesRoundTripThroughStbImage) {
     RenderOptions options;
     options.width = 97;
     options.height = 61;
-    at::Tensor cloud = test::random_points(300, 4);
+    at::Tensor cloud = uniform_random_points(300, 4);
     render_points(cloud, path, options, colormap(cloud.select(1, 0)));
     std::string bytes = test::read_file(path);
     ASSERT_GE(bytes.size(), 8u);
@@ -286,7 +287,7 @@ TEST(Render, ColormapIsMonotoneInLuminanceAndClamps) {
 }
 
 TEST(Render, RejectsBadInputs) {
-    at::Tensor cloud = test::random_points(10, 1);
+    at::Tensor cloud = uniform_random_points(10, 1);
     EXPECT_THROW(render_image(at::zeros({4, 2})), InputError);
     EXPECT_THROW(render_image(cloud, {}, at::zeros({9, 3})), InputError);
     RenderOptions options;

@@ -12,6 +12,7 @@
 #include "pumeta/data/dataset.h"
 #include "pumeta/data/shapes.h"
 #include "pumeta/geometry/io.h"
+#include "pumeta/geometry/sampling.h"
 #include "pumeta/meta/maml.h"
 #include "pumeta/models/backbone.h"
 #include "pumeta/models/checkpoint.h"
@@ -83,15 +84,6 @@ std::string read_file(const std::string& path) {
     return buffer.str();
 }
 
-at::Tensor random_points(int64_t n, uint64_t seed) {
-    std::mt19937_64 rng(seed);
-    std::uniform_real_distribution<float> uniform(-1.f, 1.f);
-    at::Tensor points = at::empty({n, 3}, at::kFloat);
-    float* p = points.data_ptr<float>();
-    for (int64_t i = 0; i < 3 * n; ++i) p[i] = uniform(rng);
-    return points;
-}
-
 at::Tensor sheet(int64_t batch, int64_t n, uint64_t seed, at::ScalarType type) {
     at::Generator gen = at::detail::createCPUGenerator(seed);
     at::Tensor uv = at::rand({batch, n, 2}, gen, at::TensorOptions().dtype(type)) * 2 - 1;
@@ -124,7 +116,7 @@ void make_raw_tree(const fs::path& raw) {
     write_mesh((meshes / "bunny00.off").string(), generate_shape(8));
     fs::create_directories(raw / "cgal" / "data" / "points_3");
     write_point_cloud((raw / "cgal" / "data" / "points_3" / "b9_training.ply").string(),
-                      {random_points(2000, 3) * 50.0 + 1000.0});
+                      {uniform_random_points(2000, 3) * 50.0 + 1000.0});
 }
 
 namespace {

@@ -1,4 +1,5 @@
-// Helpers shared by the tests: temporary directories, running the CLI, random clouds.
+// Helpers shared by the tests: temporary directories, running the CLI, synthetic patches, tiny
+// models. Random clouds come from the library (uniform_random_points in geometry/sampling.h).
 #pragma once
 
 #include <ATen/core/Tensor.h>
@@ -49,9 +50,6 @@ void write_file(const std::string& path, const std::string& text);
 
 /// Reads a whole file.
 std::string read_file(const std::string& path);
-
-/// float32 [n,3] points uniform in [-1,1]^3 from a seeded generator.
-at::Tensor random_points(int64_t n, uint64_t seed);
 
 /// A small surface patch: n points per element on a gently curved sheet over [-1,1]²,
 /// [B,n,3], from a seeded generator.

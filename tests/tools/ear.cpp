@@ -6,6 +6,7 @@
 #include <filesystem>
 
 #include "pumeta/geometry/io.h"
+#include "pumeta/geometry/sampling.h"
 #include "support/test_util.h"
 
 namespace pumeta {
@@ -19,7 +20,7 @@ TEST(PumetaEar, UpsamplesASphereFourTimesOntoTheSphere) {
     std::string ear = ear_program();
     if (ear.empty()) GTEST_SKIP() << "pumeta-ear not built (needs libcgal-dev)";
     test::TempDir dir;
-    at::Tensor points = test::random_points(2048, 4);
+    at::Tensor points = uniform_random_points(2048, 4);
     points = points / points.norm(2, 1, true);
     write_point_cloud(dir.file("in.xyz"), {points});
     test::CommandResult r =

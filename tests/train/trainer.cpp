@@ -15,6 +15,7 @@
 #include "pumeta/core/error.h"
 #include "pumeta/core/interrupt.h"
 #include "pumeta/data/patch_set.h"
+#include "pumeta/geometry/sampling.h"
 #include "pumeta/models/backbone.h"
 #include "pumeta/models/checkpoint.h"
 #include "support/test_util.h"
@@ -30,7 +31,7 @@ std::string write_patch_set(const test::TempDir& dir, int64_t ratio) {
     PatchSet set;
     set.ratio = ratio;
     set.patch_points = 16;
-    set.points = test::random_points(400, 5);
+    set.points = uniform_random_points(400, 5);
     set.offsets = at::tensor({int64_t{0}, int64_t{200}, int64_t{400}});
     std::vector<int64_t> seeds;
     for (int64_t mesh = 0; mesh < 2; ++mesh)
@@ -160,7 +161,7 @@ TEST(Train, CiPresetTrainsThePaperWidthModelInSecondsAndResumes) {
     PatchSet set;
     set.ratio = 4;
     set.patch_points = 256;
-    set.points = test::random_points(2 * 1200, 7);
+    set.points = uniform_random_points(2 * 1200, 7);
     set.offsets = at::tensor({int64_t{0}, int64_t{1200}, int64_t{2400}});
     set.seeds = at::tensor(std::vector<int64_t>{0, 0, 0, 600, 1, 0, 1, 600}).view({4, 2});
     set.ids = {"a", "b"};

@@ -131,6 +131,16 @@ at::Tensor farthest_point_sampling_batched(const at::Tensor& points, int64_t m) 
     return indices;
 }
 
+at::Tensor uniform_random_points(int64_t n, uint64_t seed) {
+    if (n < 0) throw_input_error("uniform_random_points", "cannot draw {} points", n);
+    std::mt19937_64 rng(seed);
+    std::uniform_real_distribution<float> uniform(-1.f, 1.f);
+    at::Tensor points = at::empty({n, 3}, at::kFloat);
+    float* p = points.data_ptr<float>();
+    for (int64_t i = 0; i < 3 * n; ++i) p[i] = uniform(rng);
+    return points;
+}
+
 at::Tensor random_subset(int64_t n, int64_t m, uint64_t seed) {
     if (m < 0 || m > n)
         throw_input_error("random_subset", "cannot draw {} distinct indices from {}", m, n);

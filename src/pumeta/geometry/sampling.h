@@ -23,6 +23,10 @@ at::Tensor farthest_point_sampling(const at::Tensor& points, int64_t m, int64_t 
 /// input runs the CPU loop (elements in parallel), anything else tensor ops.
 at::Tensor farthest_point_sampling_batched(const at::Tensor& points, int64_t m);
 
+/// n points uniform in the cube [-1, 1]³, float32 [n,3], from mt19937_64(seed): the synthetic
+/// clouds of the tests and benchmarks.
+at::Tensor uniform_random_points(int64_t n, uint64_t seed);
+
 /// m distinct indices drawn uniformly from [0, n) (sorted ascending). InputError when m > n.
 at::Tensor random_subset(int64_t n, int64_t m, uint64_t seed);
 

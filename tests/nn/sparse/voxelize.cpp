@@ -8,6 +8,7 @@
 #include <set>
 
 #include "pumeta/core/error.h"
+#include "pumeta/geometry/sampling.h"
 #include "support/test_util.h"
 
 namespace pumeta {
@@ -21,7 +22,7 @@ TEST(Voxelize, FloorsEachCoordinateIncludingNegatives) {
 }
 
 TEST(Voxelize, KeepsOneSitePerOccupiedVoxelPerBatchElement) {
-    at::Tensor cloud = test::random_points(500, 1);
+    at::Tensor cloud = uniform_random_points(500, 1);
     at::Tensor batch = at::stack({cloud, cloud.flip(0)});  // same voxels, other element
     const double h = 0.25;
     CoordinateSetPtr set = voxelize(batch, h);
@@ -36,7 +37,7 @@ TEST(Voxelize, KeepsOneSitePerOccupiedVoxelPerBatchElement) {
 }
 
 TEST(Voxelize, CentresLieInTheirVoxelWithinHalfAnEdgeOfThePoints) {
-    at::Tensor cloud = test::random_points(300, 2).unsqueeze(0);
+    at::Tensor cloud = uniform_random_points(300, 2).unsqueeze(0);
     const double h = 0.1;
     at::Tensor coords = voxel_coordinates(cloud, h);
     at::Tensor centres = voxel_centres(coords, h);
@@ -46,7 +47,7 @@ TEST(Voxelize, CentresLieInTheirVoxelWithinHalfAnEdgeOfThePoints) {
 }
 
 TEST(Voxelize, RejectsBadVoxelSizesAndNonFinitePoints) {
-    at::Tensor cloud = test::random_points(10, 3).unsqueeze(0);
+    at::Tensor cloud = uniform_random_points(10, 3).unsqueeze(0);
     EXPECT_THROW(voxelize(cloud, 0.0), InputError);
     EXPECT_THROW(voxelize(cloud, 1e-6), InputError);  // beyond the 16-bit coordinate range
     cloud[0][3][1] = std::nanf("");
