@@ -207,11 +207,22 @@ class Runner {
         if (file.empty()) {
             std::string main =
                 model_file_for_ratio(config_.models_dir, backbone, config_.main_ratio, suffix);
-            if (!main.empty() && !load_checkpoint(main).backbone->config_for_ratio(ratio).is_null())
-                file = main;
+            if (!main.empty() && serves_ratio(main, ratio)) file = main;
         }
         if (file.empty()) return std::nullopt;
         return file;
+    }
+
+    /// Whether the checkpoint's backbone rebuilds at `ratio` (config_for_ratio), loaded once.
+    bool serves_ratio(const std::string& file, int64_t ratio) const {
+        auto key = std::make_pair(file, ratio);
+        auto found = serves_ratio_.find(key);
+        if (found == serves_ratio_.end())
+            found = serves_ratio_
+                        .emplace(key,
+                                 !load_checkpoint(file).backbone->config_for_ratio(ratio).is_null())
+                        .first;
+        return found->second;
     }
 
     /// The cell of `spec`, evaluated or reused; a placeholder without results while another
@@ -352,7 +363,8 @@ class Runner {
     fs::path out_dir_;
     std::string command_line_;
     std::map<std::string, RunResult> done_;
-    std::map<std::string, nlohmann::json> identities_;  // by cell key
+    std::map<std::string, nlohmann::json> identities_;                      // by cell key
+    mutable std::map<std::pair<std::string, int64_t>, bool> serves_ratio_;  // by (file, ratio)
     // ok = false: a placeholder cell until a later pass.
     RunResult deferred_result_{"", false, "being evaluated by another process", {}, {}, {}};
     int64_t count_ = 0;
