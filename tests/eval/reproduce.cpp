@@ -243,6 +243,29 @@ TEST_F(ReproduceTest, TablesOnlyEvaluatesNothingAndShowsWhatIsPending) {
     EXPECT_EQ(again.at("table2"), full.at("table2"));
 }
 
+TEST_F(ReproduceTest, ACellThatFailsOnItsInputKeepsItsErrorAndIsNotPending) {
+    // Without a second GT sample there is no sampling floor for test-scans.
+    fs::path cases = fs::path(config_->at("dataset_dir").get<std::string>()) / "cases" /
+                     "test-scans" / "x4";
+    int removed = 0;
+    for (const auto& entry : fs::directory_iterator(cases))
+        if (entry.is_directory()) removed += fs::remove(entry.path() / "gt_alt.ply");
+    ASSERT_GT(removed, 0);
+    fs::path out = dir_->path() / "floorless";
+    auto floor_cell = [](const nlohmann::json& tables) {
+        return row(tables.at("table1"), "sampling floor (2nd GT sample)").at("cells")[2];
+    };
+    nlohmann::json full = reproduce(config(), out.string(), "test");
+    const std::string error = floor_cell(full).at("missing");
+    EXPECT_NE(error.find("gt_alt.ply"), std::string::npos) << error;
+    EXPECT_TRUE(fs::exists(out / "runs/test-scans-x4/floor/error.json"));
+
+    nlohmann::json again = reproduce(config(), out.string(), "test", /*evaluate=*/false);
+    EXPECT_EQ(floor_cell(again).at("missing"), error);
+    for (const auto& note : again.at("missing"))
+        EXPECT_EQ(note.get<std::string>().find("not evaluated yet"), std::string::npos) << note;
+}
+
 TEST_F(ReproduceTest, NoiseBackbonesLimitTableTwoToTheBackbonesListed) {
     fs::path out = dir_->path() / "noise-rows";
     ReproduceConfig c = config();

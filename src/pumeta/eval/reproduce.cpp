@@ -257,6 +257,17 @@ class Runner {
                    fs::exists(spec_file) &&
                    nlohmann::json::parse(std::ifstream(spec_file), nullptr, false) == identity;
         };
+        // A cell that failed on its input (e.g. no sampling floor without a second GT sample)
+        // fails again with the same identity: its error is kept, not retried or left pending.
+        fs::path error_file = dir / "error.json";
+        if (fs::exists(error_file)) {
+            nlohmann::json failed =
+                nlohmann::json::parse(std::ifstream(error_file), nullptr, false);
+            if (failed.is_object() && failed.value("identity", nlohmann::json()) == identity) {
+                result.error = failed.value("error", std::string("failed"));
+                return result;
+            }
+        }
         if (!evaluate_ && !reusable()) {
             pending_.insert(key);
             result.error = "not evaluated yet";
@@ -308,6 +319,9 @@ class Runner {
                 // (nothing to resume).
                 fs::remove(partial_spec);
                 result.error = e.what();
+                std::ofstream(error_file)
+                    << nlohmann::json{{"identity", identity}, {"error", result.error}}.dump(2)
+                    << "\n";
                 spdlog::warn("reproduce: {}: {}", key, result.error);
                 return result;
             }
