@@ -245,8 +245,8 @@ TEST_F(ReproduceTest, TablesOnlyEvaluatesNothingAndShowsWhatIsPending) {
 
 TEST_F(ReproduceTest, ACellThatFailsOnItsInputKeepsItsErrorAndIsNotPending) {
     // Without a second GT sample there is no sampling floor for test-scans.
-    fs::path cases = fs::path(config_->at("dataset_dir").get<std::string>()) / "cases" /
-                     "test-scans" / "x4";
+    fs::path cases =
+        fs::path(config_->at("dataset_dir").get<std::string>()) / "cases" / "test-scans" / "x4";
     int removed = 0;
     for (const auto& entry : fs::directory_iterator(cases))
         if (entry.is_directory()) removed += fs::remove(entry.path() / "gt_alt.ply");
