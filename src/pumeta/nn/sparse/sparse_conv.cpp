@@ -79,11 +79,16 @@ void scatter_add_rows(at::Tensor& out, const at::Tensor& index, const at::Tensor
         out.scatter_add_(0, expanded(i, out.size(1)), rows);
 }
 
+/// Whether autograd records an op on a and b.
+bool recorded(const at::Tensor& a, const at::Tensor& b) {
+    return at::GradMode::is_enabled() && (a.requires_grad() || b.requires_grad());
+}
+
 /// Rows per block for gathered features of `width` channels over `offsets` kernel offsets:
 /// all of them while autograd records (each block's gather would have its own backward, an
 /// index_add_ into a zero tensor the size of the whole input), else a cache-sized block.
-int64_t block_rows(int64_t rows, int64_t offsets, int64_t width) {
-    if (at::GradMode::is_enabled()) return rows;
+int64_t block_rows(bool recording, int64_t rows, int64_t offsets, int64_t width) {
+    if (recording) return rows;
     return std::max<int64_t>(64, kBlockFloats / (offsets * width));
 }
 
@@ -111,7 +116,8 @@ at::Tensor kernel_map_product(const at::Tensor& features, const at::Tensor& weig
     // products stay in cache.
     const int64_t offsets = map.batched_offsets.numel();
     const int64_t rows = map.batched_in.numel() / offsets;
-    const int64_t block = block_rows(rows, offsets, std::max(features.size(1), weight.size(2)));
+    const int64_t block = block_rows(recorded(features, weight), rows, offsets,
+                                     std::max(features.size(1), weight.size(2)));
     at::Tensor padded_in = with_zero_row(features);
     at::Tensor weights = weight.index_select(0, on_device(map.batched_offsets, features));
     at::Tensor padded_out = with_zero_row(out);
@@ -139,8 +145,8 @@ at::Tensor kernel_map_weight_gradient(const at::Tensor& features, const at::Tens
     if (map.batched_offsets.defined()) {
         const int64_t offsets = map.batched_offsets.numel();
         const int64_t rows = map.batched_in.numel() / offsets;
-        const int64_t block =
-            block_rows(rows, offsets, std::max(features.size(1), grad_out.size(1)));
+        const int64_t block = block_rows(recorded(features, grad_out), rows, offsets,
+                                         std::max(features.size(1), grad_out.size(1)));
         at::Tensor padded_in = with_zero_row(features), padded_grad = with_zero_row(grad_out);
         at::Tensor in_rows = map.batched_in.view({offsets, rows});
         at::Tensor out_rows = map.batched_out.view({offsets, rows});
@@ -203,7 +209,7 @@ class KernelMapProduct : public torch::autograd::Function<KernelMapProduct> {
         if (features.requires_grad()) {
             KernelMap transposed = map.transposed();
             at::Tensor weight_t = weight.transpose(1, 2);
-            grad_features = at::GradMode::is_enabled()
+            grad_features = recorded(grad_out, weight_t)
                                 ? KernelMapProduct::apply(grad_out, weight_t, transposed)
                                 : kernel_map_product(grad_out, weight_t, transposed);
         }
@@ -233,10 +239,8 @@ at::Tensor apply_kernel_map(const at::Tensor& features, const at::Tensor& weight
         weight.size(1) != features.size(1))
         throw_input_error(kContext, "weight {} does not match {} offsets and {} channels",
                           shape_string(weight), map.kernel_volume(), features.size(1));
-    const bool tracked =
-        at::GradMode::is_enabled() && (features.requires_grad() || weight.requires_grad());
-    at::Tensor out = tracked ? KernelMapProduct::apply(features, weight, map)
-                             : kernel_map_product(features, weight, map);
+    at::Tensor out = recorded(features, weight) ? KernelMapProduct::apply(features, weight, map)
+                                                : kernel_map_product(features, weight, map);
     return bias.defined() ? out + bias : out;
 }
 
