@@ -159,5 +159,25 @@ TEST(Cli, TrainStoppedBySigtermSavesACheckpointAndExits130) {
     EXPECT_TRUE(fs::exists(dir.file("run/state.ckpt")));
 }
 
+TEST(Cli, ReproduceQuickWritesEveryTableAndABadConfigIsAOneLineError) {
+    test::TempDir dir;
+    std::ofstream(dir.file("reproduce.json")) << test::make_tiny_reproduction(dir.path()).dump();
+    auto r = test::run_cli({"--threads", "1", "reproduce", "--config", dir.file("reproduce.json"),
+                            "--budget", "quick", "-o", dir.file("results")});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const std::string md = test::read_file(dir.file("results/tables.md"));
+    for (const char* title : {"## Table I:", "## Table II:", "## Table III:", "## Table IV:",
+                              "## Table V:", "## Table VI:"})
+        EXPECT_NE(md.find(title), std::string::npos) << title;
+    EXPECT_TRUE(fs::exists(dir.file("results/tables.json")));
+
+    test::write_file(dir.file("broken.json"), "{\"sets\": [");
+    auto bad = test::run_cli(
+        {"reproduce", "--config", dir.file("broken.json"), "-o", dir.file("results2")});
+    EXPECT_EQ(bad.exit_code, 2);
+    EXPECT_TRUE(one_line(bad.err)) << bad.err;
+    EXPECT_NE(bad.err.find("broken.json"), std::string::npos) << bad.err;
+}
+
 }  // namespace
 }  // namespace pumeta
