@@ -92,10 +92,17 @@ int64_t block_rows(bool recording, int64_t rows, int64_t offsets, int64_t width)
     return std::max<int64_t>(64, kBlockFloats / (offsets * width));
 }
 
+/// Pairs [start, start + n) of every offset of a batched map, flattened: rows2d is the map's
+/// batched_in or batched_out viewed as [offsets, rows].
+at::Tensor block_pairs(const at::Tensor& rows2d, int64_t start, int64_t n) {
+    return n == rows2d.size(1) ? rows2d.reshape(-1) : rows2d.narrow(1, start, n).reshape(-1);
+}
+
 /// x with one zero row appended: the row that the batched maps' padding pairs read.
 at::Tensor with_zero_row(const at::Tensor& x) { return at::cat({x, x.new_zeros({1, x.size(1)})}); }
 
-/// Σ_k scatter(map.out[k], gather(map.in[k], features) · weight[k]), without the bias.
+/// Σ_k scatter(map.out[k], gather(map.in[k], features) · weight[k]), without the bias. Never
+/// recorded by autograd (KernelMapProduct carries its gradient), so always in row blocks.
 at::Tensor kernel_map_product(const at::Tensor& features, const at::Tensor& weight,
                               const KernelMap& map) {
     // Start from the centre tap where it maps every site to itself: no gather, no scatter.
@@ -116,8 +123,8 @@ at::Tensor kernel_map_product(const at::Tensor& features, const at::Tensor& weig
     // products stay in cache.
     const int64_t offsets = map.batched_offsets.numel();
     const int64_t rows = map.batched_in.numel() / offsets;
-    const int64_t block = block_rows(recorded(features, weight), rows, offsets,
-                                     std::max(features.size(1), weight.size(2)));
+    const int64_t block =
+        block_rows(/*recording=*/false, rows, offsets, std::max(features.size(1), weight.size(2)));
     at::Tensor padded_in = with_zero_row(features);
     at::Tensor weights = weight.index_select(0, on_device(map.batched_offsets, features));
     at::Tensor padded_out = with_zero_row(out);
@@ -125,12 +132,10 @@ at::Tensor kernel_map_product(const at::Tensor& features, const at::Tensor& weig
     at::Tensor out_rows = map.batched_out.view({offsets, rows});
     for (int64_t start = 0; start < rows; start += block) {
         const int64_t n = std::min(block, rows - start);
-        at::Tensor in_index =
-            rows <= block ? map.batched_in : in_rows.narrow(1, start, n).reshape(-1);
-        at::Tensor out_index =
-            rows <= block ? map.batched_out : out_rows.narrow(1, start, n).reshape(-1);
-        at::Tensor gathered = gather_rows(padded_in, in_index).view({offsets, n, features.size(1)});
-        scatter_add_rows(padded_out, out_index, at::bmm(gathered, weights).view({-1, out.size(1)}));
+        at::Tensor gathered = gather_rows(padded_in, block_pairs(in_rows, start, n))
+                                  .view({offsets, n, features.size(1)});
+        scatter_add_rows(padded_out, block_pairs(out_rows, start, n),
+                         at::bmm(gathered, weights).view({-1, out.size(1)}));
     }
     return padded_out.narrow(0, 0, map.output_size);
 }
@@ -153,9 +158,9 @@ at::Tensor kernel_map_weight_gradient(const at::Tensor& features, const at::Tens
         at::Tensor sum;
         for (int64_t start = 0; start < rows; start += block) {
             const int64_t n = std::min(block, rows - start);
-            at::Tensor x = gather_rows(padded_in, in_rows.narrow(1, start, n).reshape(-1))
+            at::Tensor x = gather_rows(padded_in, block_pairs(in_rows, start, n))
                                .view({offsets, n, features.size(1)});
-            at::Tensor g = gather_rows(padded_grad, out_rows.narrow(1, start, n).reshape(-1))
+            at::Tensor g = gather_rows(padded_grad, block_pairs(out_rows, start, n))
                                .view({offsets, n, grad_out.size(1)});
             if (sum.defined())
                 sum.baddbmm_(x.transpose(1, 2), g);  // only without autograd: one block else
