@@ -153,6 +153,35 @@ TEST(UpsampleCloud, TtaDownsamplerPicksTheSamplerOfXDown) {
     EXPECT_THROW(upsample_cloud(*model, input, options), InputError);
 }
 
+TEST(UpsampleCloud, OracleUnitAdaptsOnTheGroundTruthAndNeedsIt) {
+    auto model = small_pugcn(4);
+    // A scaled, shifted input: the ground truth must follow the input's frame.
+    at::Tensor input = sphere_points(300, 10) * 3.0 + 1.0;
+    at::Tensor gt = sphere_points(1200, 11) * 3.0 + 1.0;
+    UpsampleResult plain = upsample_cloud(*model, input, {});
+    UpsampleOptions options;
+    options.tta_steps = 5;
+    options.meta.inner_lr = 0.05;
+    options.tta_unit = "oracle";
+    EXPECT_THROW(upsample_cloud(*model, input, options), InputError);  // no ground truth
+    options.tta_oracle_gt = gt;
+    UpsampleResult oracle = upsample_cloud(*model, input, options);
+    EXPECT_EQ(oracle.points.size(0), 1200);
+    EXPECT_LT(oracle.loss_after, 0.9 * oracle.loss_before);
+    // Fitting the ground truth around each patch brings the whole output closer to it.
+    EXPECT_LT(chamfer_distance(oracle.points, gt), chamfer_distance(plain.points, gt));
+    // The self-supervised units never see the ground truth: the same output with or without it.
+    options.tta_unit = "object";
+    UpsampleResult object = upsample_cloud(*model, input, options);
+    options.tta_oracle_gt = at::Tensor();
+    EXPECT_TRUE(object.points.equal(upsample_cloud(*model, input, options).points));
+    // Two passes (16x with a 4x model) would need a ground truth per pass.
+    options.tta_unit = "oracle";
+    options.tta_oracle_gt = gt;
+    options.ratio = 16;
+    EXPECT_THROW(upsample_cloud(*model, input, options), InputError);
+}
+
 TEST(UpsampleCloud, RatioThatIsNotAPowerOfTheModelsIsAnInputError) {
     auto model = small_pugcn(4);
     UpsampleOptions options;

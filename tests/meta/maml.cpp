@@ -278,5 +278,33 @@ TEST(Maml, MetaSgdStepSizesReceiveGradients) {
     EXPECT_NEAR(analytic, numeric, 1e-4 * std::max(1e-8, std::abs(numeric)));
 }
 
+TEST(Maml, FirstStepAlignmentIsOneOnTheSameTaskAndPredictsTheSupervisedChange) {
+    auto model = tiny_model(true);
+    Tasks tasks = tiny_tasks(1, true);
+    MetaOptions options;
+    options.inner_steps = 1;
+    options.inner_lr = 1e-6;
+    const ParamMap& theta = model->parameters();
+    // When the inner task is the supervised one (both L(F(x), x)), the update is its gradient.
+    EXPECT_NEAR(first_step_alignment(*model, theta, tasks.x, tasks.x, tasks.x, options, {}), 1.0,
+                1e-9);
+    at::Tensor x_down = model->downsample(tasks.x, 3);
+    double cosine = first_step_alignment(*model, theta, x_down, tasks.x, tasks.y, options, {});
+    ASSERT_LE(std::abs(cosine), 1.0);
+    ASSERT_GT(std::abs(cosine), 1e-3);  // a fixture where the sign is meaningful
+    // One tiny inner step changes the supervised loss by about -α⟨g_self, g_sup⟩.
+    ParamMap fast = adapt(*model, theta, x_down, tasks.x, options, {}, false);
+    double before = model->loss(tasks.x, tasks.y, theta).item<double>();
+    double after = model->loss(tasks.x, tasks.y, fast).item<double>();
+    EXPECT_EQ(cosine > 0, after < before) << cosine << " " << before << " -> " << after;
+    // Per-tensor step sizes weight the update: all but one tensor frozen gives another value.
+    StepSizes one_tensor;
+    for (const auto& [name, p] : theta) one_tensor[name] = at::zeros({}, at::kDouble);
+    one_tensor.begin()->second.fill_(1e-6);
+    double partial =
+        first_step_alignment(*model, theta, x_down, tasks.x, tasks.y, options, one_tensor);
+    EXPECT_GT(std::abs(partial - cosine), 1e-6);
+}
+
 }  // namespace
 }  // namespace pumeta

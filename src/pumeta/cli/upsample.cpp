@@ -43,8 +43,10 @@ void add_model_options(CLI::App& command, ModelArgs& args) {
     command
         .add_option("--tta-unit", args.tta_unit,
                     "object: one adaptation on the input's patches, each downsampled; patch: "
-                    "one per patch; cloud: one on patches of the downsampled whole input")
-        ->check(CLI::IsMember({"object", "patch", "cloud"}));
+                    "one per patch; cloud: one on patches of the downsampled whole input; "
+                    "oracle (eval only): a diagnostic upper bound that adapts on the ground "
+                    "truth")
+        ->check(CLI::IsMember({"object", "patch", "cloud", "oracle"}));
     command
         .add_option("--tta-downsampler", args.tta_downsampler,
                     "sampler of X↓ for adaptation: fps, random or nonuniform (default: the "
@@ -223,6 +225,9 @@ void add_meta_train_command(CLI::App& app) {
         print_json({{"steps", r.steps},
                     {"val_cd_before", r.last.cd_before},
                     {"val_cd_after", r.last.cd_after},
+                    {"val_inner_before", r.last.inner_loss_before},
+                    {"val_inner_after", r.last.inner_loss_after},
+                    {"val_alignment", r.last.alignment},
                     {"best_val_cd_after", r.best_cd_after}});
     });
 }

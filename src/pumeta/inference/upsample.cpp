@@ -99,6 +99,17 @@ AdaptationPairs cloud_scale_pairs(const Backbone& model, const at::Tensor& cloud
     return {(input - center) / scale, (target - center) / scale};
 }
 
+/// The "oracle" unit's pairs: each patch of X as the network sees it, with the patch_size·r
+/// ground-truth points nearest to its seed in the same patch frame as target.
+AdaptationPairs oracle_pairs(const Backbone& model, const at::Tensor& cloud, const Patches& patches,
+                             const at::Tensor& gt) {
+    const int64_t m = std::min(patches.points.size(1) * model.ratio(), gt.size(0));
+    at::Tensor seeds = cloud.index_select(0, patches.seeds);
+    at::Tensor target = gt.index_select(0, knn(gt, seeds, m).indices.flatten()).view({-1, m, 3});
+    target = (target - patches.centers.unsqueeze(1)) / patches.scales.view({-1, 1, 1});
+    return {patches.points, target};
+}
+
 at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
                          const UpsampleOptions& options, UpsampleResult& result) {
     int64_t r = model.ratio();
@@ -139,13 +150,17 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
                    ? at::arange(rows, at::kLong)
                    : random_subset(rows, options.tta_max_patches, options.seed);
     };
-    if (options.tta_steps > 0 && (options.tta_unit == "object" || options.tta_unit == "cloud")) {
+    const bool one_theta =
+        options.tta_unit == "object" || options.tta_unit == "cloud" || options.tta_unit == "oracle";
+    if (options.tta_steps > 0 && one_theta) {
         std::pair<ParamMap, std::vector<double>> adapted;
         if (options.tta_unit == "object") {
             adapted = adapt_on(patches.points.index_select(0, subset(num_patches)), options.seed);
         } else {
             AdaptationPairs pairs =
-                cloud_scale_pairs(model, cloud, patch_options, options, options.seed);
+                options.tta_unit == "cloud"
+                    ? cloud_scale_pairs(model, cloud, patch_options, options, options.seed)
+                    : oracle_pairs(model, cloud, patches, options.tta_oracle_gt);
             at::Tensor rows = subset(pairs.input.size(0));
             adapted =
                 adapt_pairs(pairs.input.index_select(0, rows), pairs.target.index_select(0, rows));
@@ -154,7 +169,7 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
         result.loss_before = adapted.second.front();
         result.loss_after = adapted.second.back();
     } else if (options.tta_steps > 0 && options.tta_unit != "patch") {
-        throw_input_error("--tta-unit", "expected object, patch or cloud, found '{}'",
+        throw_input_error("--tta-unit", "expected object, patch, cloud or oracle, found '{}'",
                           options.tta_unit);
     }
     result.tta_seconds += seconds_since(tta_start);
@@ -219,8 +234,19 @@ UpsampleResult upsample_cloud(const Backbone& model, const at::Tensor& points,
     result.n_in = points.size(0);
     Normalization frame = unit_sphere_normalization(points);
     at::Tensor cloud = frame.apply(points).contiguous();
+    UpsampleOptions framed = options;
+    if (options.tta_steps > 0 && options.tta_unit == "oracle") {
+        if (!options.tta_oracle_gt.defined())
+            throw_input_error("--tta-unit",
+                              "oracle adaptation needs the ground truth (pumeta eval)");
+        if (passes != 1)
+            throw_input_error("--tta-unit", "oracle adaptation needs a single pass (ratio {})",
+                              model.ratio());
+        check_points(options.tta_oracle_gt, "oracle ground truth", 1);
+        framed.tta_oracle_gt = frame.apply(options.tta_oracle_gt).contiguous();
+    }
     for (int64_t pass = 0; pass < passes; ++pass) {
-        UpsampleOptions pass_options = options;
+        UpsampleOptions pass_options = framed;
         pass_options.seed = options.seed + 7919 * pass;
         cloud = upsample_once(model, cloud, pass_options, result).contiguous();
     }

@@ -28,8 +28,13 @@ struct UpsampleOptions {
     /// "object": one adaptation on all patches of the input (a batch), θ' used for every
     /// patch, each patch's X↓ its own downsample; "patch": each patch adapts on its own;
     /// "cloud": one θ' from X↓ = the downsampled whole cloud, cut into network-sized patches
-    /// paired with the points of X around them (docs/design.md).
+    /// paired with the points of X around them (docs/design.md). "oracle" is a diagnostic,
+    /// never a result: θ' from N steps on the supervised pairs (X's patches, the ground truth
+    /// around them), i.e. what N steps could gain with a perfect training signal; it needs
+    /// tta_oracle_gt and a single pass (`pumeta eval --tta-unit oracle`, docs/design.md).
     std::string tta_unit = "object";
+    /// The ground truth [M,3] in the input's frame, for tta_unit "oracle" only.
+    at::Tensor tta_oracle_gt;
     /// X↓'s sampler for adaptation ("fps", "random", "nonuniform"); empty = the backbone's
     /// training-pair downsampler. E.g. "fps" makes X↓ of a blue-noise input blue-noise too.
     std::string tta_downsampler;

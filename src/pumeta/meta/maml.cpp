@@ -100,6 +100,30 @@ ParamMap adapt(const Backbone& model, const ParamMap& params, const at::Tensor& 
     return fast;
 }
 
+double first_step_alignment(const Backbone& model, const ParamMap& params, const at::Tensor& x_down,
+                            const at::Tensor& x, const at::Tensor& y, const MetaOptions& options,
+                            const StepSizes& step_sizes) {
+    ParamMap fast, adapting;
+    for (const auto& [name, p] : params) {
+        fast[name] = p.detach();
+        if (options.adapts(name)) adapting[name] = fast[name].requires_grad_(true);
+    }
+    ParamMap self = gradients(model.loss(x_down, x, fast), adapting);
+    ParamMap supervised = gradients(model.loss(x, y, fast), adapting);
+    double dot = 0, self_norm = 0, supervised_norm = 0;
+    for (const auto& [name, g] : self) {
+        auto alpha = step_sizes.find(name);
+        at::Tensor update =
+            alpha != step_sizes.end() ? g * alpha->second.detach() : g * options.inner_lr;
+        const at::Tensor& h = supervised.at(name);
+        dot += (update * h).sum().item<double>();
+        self_norm += update.square().sum().item<double>();
+        supervised_norm += h.square().sum().item<double>();
+    }
+    if (self_norm == 0 || supervised_norm == 0) return 0;
+    return dot / std::sqrt(self_norm * supervised_norm);
+}
+
 MetaStepResult meta_gradient(const Backbone& model, const at::Tensor& x, const at::Tensor& y,
                              const MetaOptions& options, const StepSizes& step_sizes, uint64_t seed,
                              int64_t step) {

@@ -60,6 +60,15 @@ ParamMap adapt(const Backbone& model, const ParamMap& params, const at::Tensor& 
                const at::Tensor& x, const MetaOptions& options, const StepSizes& step_sizes,
                bool create_graph, std::vector<double>* losses = nullptr);
 
+/// Whether the first inner step points downhill on the supervised task: the cosine between
+/// the first inner update α ⊙ ∇L(F_θ(x_down), x) and ∇L(F_θ(x), y), over the adapting
+/// parameters (α per tensor from step_sizes, else inner_lr). Near 0, the self-supervised step
+/// carries no information about x → y; > 0, it lowers the supervised loss to first order.
+/// Meta-training is meant to raise it (docs/design.md); no graph is kept.
+double first_step_alignment(const Backbone& model, const ParamMap& params, const at::Tensor& x_down,
+                            const at::Tensor& x, const at::Tensor& y, const MetaOptions& options,
+                            const StepSizes& step_sizes);
+
 struct MetaStepResult {
     double outer_loss = 0;         ///< mean over tasks of L(F_θn(X_n), Y_n)
     double outer_loss_before = 0;  ///< mean over tasks of L(F_θ(X_n), Y_n) (no adaptation)

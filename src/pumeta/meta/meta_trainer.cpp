@@ -90,6 +90,9 @@ AdaptationScore score_adaptation(const Backbone& model, const ValidationSet& val
                                  /*create_graph=*/false, &losses);
         score.inner_loss_before += losses.front() / n;
         score.inner_loss_after += losses.back() / n;
+        score.alignment += first_step_alignment(model, model.parameters(), x_down, x,
+                                                val.gt.slice(0, i, i + 1), meta, step_sizes) /
+                           n;
         at::NoGradGuard no_grad;
         before.push_back(model.upsample(x));
         after.push_back(model.upsample(x, adapted));
@@ -105,9 +108,11 @@ AdaptationScore score_adaptation(const Backbone& model, const ValidationSet& val
     ParamMap totals = group.sum({{"cd_before", scalar(score.cd_before)},
                                  {"cd_after", scalar(score.cd_after)},
                                  {"inner_before", scalar(score.inner_loss_before)},
-                                 {"inner_after", scalar(score.inner_loss_after)}});
+                                 {"inner_after", scalar(score.inner_loss_after)},
+                                 {"alignment", scalar(score.alignment)}});
     return {totals["cd_before"].item<double>(), totals["cd_after"].item<double>(),
-            totals["inner_before"].item<double>(), totals["inner_after"].item<double>()};
+            totals["inner_before"].item<double>(), totals["inner_after"].item<double>(),
+            totals["alignment"].item<double>()};
 }
 
 /// Combines one outer step over the ranks in one collective: the gradients and losses as
@@ -231,11 +236,13 @@ MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume, double st
                               {"val_cd_after", last.cd_after},
                               {"val_inner_before", last.inner_loss_before},
                               {"val_inner_after", last.inner_loss_after},
+                              {"val_alignment", last.alignment},
                               {"best", improved}});
         spdlog::info(
             "meta-train: step {} val CD {:.4e} -> {:.4e} after adaptation (inner "
-            "{:.4e} -> {:.4e})",
-            step, last.cd_before, last.cd_after, last.inner_loss_before, last.inner_loss_after);
+            "{:.4e} -> {:.4e}, first-step alignment {:+.3f})",
+            step, last.cd_before, last.cd_after, last.inner_loss_before, last.inner_loss_after,
+            last.alignment);
     };
 
     if (val && step == 0) validate();

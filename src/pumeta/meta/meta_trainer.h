@@ -53,6 +53,9 @@ struct AdaptationScore {
     double cd_after = 0;           ///< CD of F_θ'(X) vs Y after N inner steps
     double inner_loss_before = 0;  ///< self-supervised loss before adaptation
     double inner_loss_after = 0;   ///< ... and after
+    /// Mean first_step_alignment() of the tasks: does the first inner step point downhill
+    /// on X → Y?
+    double alignment = 0;
 };
 
 struct MetaTrainResult {
