@@ -372,10 +372,10 @@ class Runner {
 
   private:
     const ReproduceConfig& config_;
-    bool evaluate_ = true;
-    std::set<std::string> pending_;
     fs::path out_dir_;
     std::string command_line_;
+    bool evaluate_ = true;
+    std::set<std::string> pending_;
     std::map<std::string, RunResult> done_;
     std::map<std::string, nlohmann::json> identities_;                      // by cell key
     mutable std::map<std::pair<std::string, int64_t>, bool> serves_ratio_;  // by (file, ratio)
