@@ -8,6 +8,7 @@
 
 #include <cmath>
 
+#include "pumeta/core/error.h"
 #include "pumeta/geometry/sampling.h"
 #include "pumeta/nn/gradients.h"
 #include "support/test_util.h"
@@ -139,6 +140,36 @@ TEST(Maml, ZeroInnerStepSizeReducesToSupervisedGradient) {
         EXPECT_LT((result.grads.at(name) - g).abs().max().item<double>() / scale, 1e-9) << name;
     }
     EXPECT_NEAR(result.outer_loss, result.outer_loss_before, 1e-12);
+}
+
+TEST(Maml, GainObjectiveIsAlgorithmOnesGradientLessTheSupervisedOne) {
+    auto model = tiny_model(true);
+    Tasks tasks = tiny_tasks(3, true);
+    MetaOptions options;
+    options.inner_steps = 2;
+    options.inner_lr = 0.3;
+    MetaStepResult loss = meta_gradient(*model, tasks.x, tasks.y, options, {}, 1);
+    options.outer_objective = "gain";
+    MetaStepResult gain = meta_gradient(*model, tasks.x, tasks.y, options, {}, 1);
+    ParamMap supervised =
+        gradients(model->loss(tasks.x, tasks.y, model->parameters()), model->parameters());
+    double largest = 0;
+    for (auto& [name, g] : supervised) {
+        at::Tensor expected = loss.grads.at(name) - g;
+        double scale = loss.grads.at(name).abs().max().item<double>() + 1e-12;
+        EXPECT_LT((gain.grads.at(name) - expected).abs().max().item<double>() / scale, 1e-9)
+            << name;
+        largest = std::max(largest, gain.grads.at(name).abs().max().item<double>());
+    }
+    EXPECT_GT(largest, 0.0);
+    EXPECT_DOUBLE_EQ(gain.outer_loss, loss.outer_loss);  // the log still reports L(θ')
+    EXPECT_DOUBLE_EQ(gain.outer_loss_before, loss.outer_loss_before);
+    // Without a step there is nothing to gain.
+    options.inner_lr = 0;
+    for (auto& [name, g] : meta_gradient(*model, tasks.x, tasks.y, options, {}, 1).grads)
+        EXPECT_EQ(g.abs().max().item<double>(), 0.0) << name;
+    options.outer_objective = "both";
+    EXPECT_THROW(MetaOptions::from_json(options.to_json()), InputError);
 }
 
 TEST(Maml, TasksWhoseInnerLoopDivergesAreDroppedAndTheRestAveraged) {
@@ -286,10 +317,12 @@ TEST(Maml, FirstStepAlignmentIsOneOnTheSameTaskAndPredictsTheSupervisedChange) {
     options.inner_lr = 1e-6;
     const ParamMap& theta = model->parameters();
     // When the inner task is the supervised one (both L(F(x), x)), the update is its gradient.
-    EXPECT_NEAR(first_step_alignment(*model, theta, tasks.x, tasks.x, tasks.x, options, {}), 1.0,
-                1e-9);
+    EXPECT_NEAR(
+        first_step_alignment(*model, theta, tasks.x, tasks.x, tasks.x, tasks.x, options, {}), 1.0,
+        1e-9);
     at::Tensor x_down = model->downsample(tasks.x, 3);
-    double cosine = first_step_alignment(*model, theta, x_down, tasks.x, tasks.y, options, {});
+    double cosine =
+        first_step_alignment(*model, theta, x_down, tasks.x, tasks.x, tasks.y, options, {});
     ASSERT_LE(std::abs(cosine), 1.0);
     ASSERT_GT(std::abs(cosine), 1e-3);  // a fixture where the sign is meaningful
     // One tiny inner step changes the supervised loss by about -α⟨g_self, g_sup⟩.
@@ -302,7 +335,7 @@ TEST(Maml, FirstStepAlignmentIsOneOnTheSameTaskAndPredictsTheSupervisedChange) {
     for (const auto& [name, p] : theta) one_tensor[name] = at::zeros({}, at::kDouble);
     one_tensor.begin()->second.fill_(1e-6);
     double partial =
-        first_step_alignment(*model, theta, x_down, tasks.x, tasks.y, options, one_tensor);
+        first_step_alignment(*model, theta, x_down, tasks.x, tasks.x, tasks.y, options, one_tensor);
     EXPECT_GT(std::abs(partial - cosine), 1e-6);
 }
 

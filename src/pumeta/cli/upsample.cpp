@@ -228,6 +228,7 @@ void add_meta_train_command(CLI::App& app) {
                     {"val_inner_before", r.last.inner_loss_before},
                     {"val_inner_after", r.last.inner_loss_after},
                     {"val_alignment", r.last.alignment},
+                    {"val_alignment_other", r.last.alignment_other},
                     {"best_val_cd_after", r.best_cd_after}});
     });
 }

@@ -22,6 +22,7 @@ void visit_fields(Self& o, Visit&& visit) {
     visit("first_order", o.first_order);
     visit("learn_inner_lr", o.learn_inner_lr);
     visit("adapt", o.adapt);
+    visit("outer_objective", o.outer_objective);
 }
 
 }  // namespace
@@ -31,6 +32,9 @@ MetaOptions MetaOptions::from_json(const nlohmann::json& j) {
     read_fields(j, "meta config", [&](auto&& visit) { visit_fields(o, visit); });
     if (o.inner_steps < 0) throw_input_error("meta config", "inner_steps must be >= 0");
     if (o.inner_lr < 0) throw_input_error("meta config", "inner_lr must be >= 0");
+    if (o.outer_objective != "loss" && o.outer_objective != "gain")
+        throw_input_error("meta config", "outer_objective must be \"loss\" or \"gain\", found '{}'",
+                          o.outer_objective);
     return o;
 }
 
@@ -101,15 +105,15 @@ ParamMap adapt(const Backbone& model, const ParamMap& params, const at::Tensor& 
 }
 
 double first_step_alignment(const Backbone& model, const ParamMap& params, const at::Tensor& x_down,
-                            const at::Tensor& x, const at::Tensor& y, const MetaOptions& options,
-                            const StepSizes& step_sizes) {
+                            const at::Tensor& x, const at::Tensor& x_sup, const at::Tensor& y_sup,
+                            const MetaOptions& options, const StepSizes& step_sizes) {
     ParamMap fast, adapting;
     for (const auto& [name, p] : params) {
         fast[name] = p.detach();
         if (options.adapts(name)) adapting[name] = fast[name].requires_grad_(true);
     }
     ParamMap self = gradients(model.loss(x_down, x, fast), adapting);
-    ParamMap supervised = gradients(model.loss(x, y, fast), adapting);
+    ParamMap supervised = gradients(model.loss(x_sup, y_sup, fast), adapting);
     double dot = 0, self_norm = 0, supervised_norm = 0;
     for (const auto& [name, g] : self) {
         auto alpha = step_sizes.find(name);
@@ -151,14 +155,19 @@ MetaStepResult meta_gradient(const Backbone& model, const at::Tensor& x, const a
             ++result.dropped_tasks;
             continue;
         }
-        {
+        at::Tensor outer = model.loss(xn, yn, fast, step);
+        at::Tensor objective = outer;
+        if (options.outer_objective == "gain") {
+            at::Tensor unadapted = model.loss(xn, yn, theta, step);
+            outer_before += unadapted.item<double>();
+            objective = outer - unadapted;
+        } else {
             at::NoGradGuard no_grad;
             outer_before += model.loss(xn, yn, theta, step).item<double>();
         }
-        at::Tensor outer = model.loss(xn, yn, fast, step);
         ParamMap wrt = theta;
         for (const auto& [name, a] : step_sizes) wrt["alpha/" + name] = a;
-        ParamMap grads = gradients(outer, wrt);
+        ParamMap grads = gradients(objective, wrt);
         for (auto& [name, g] : grads) {
             if (name.rfind("alpha/", 0) == 0)
                 result.step_size_grads[name.substr(6)] += g;

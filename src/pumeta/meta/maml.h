@@ -33,6 +33,11 @@ struct MetaOptions {
     bool learn_inner_lr = false;
     /// Name prefixes of the parameters that adapt (e.g. "upsample."); empty = all.
     std::vector<std::string> adapt;
+    /// What the outer step minimises per task: "loss" = L(F_θn(X_n), Y_n), Algorithm 1;
+    /// "gain" = L(F_θn(X_n), Y_n) − L(F_θ(X_n), Y_n), what adaptation adds. Algorithm 1's
+    /// gradient is ∇L(θ) (more supervised training) plus O(α) terms that make the inner step
+    /// useful; "gain" keeps only the latter (docs/design.md). An investigation, not the paper.
+    std::string outer_objective = "loss";
 
     static MetaOptions from_json(const nlohmann::json& j);
     nlohmann::json to_json() const;
@@ -60,14 +65,16 @@ ParamMap adapt(const Backbone& model, const ParamMap& params, const at::Tensor& 
                const at::Tensor& x, const MetaOptions& options, const StepSizes& step_sizes,
                bool create_graph, std::vector<double>* losses = nullptr);
 
-/// Whether the first inner step points downhill on the supervised task: the cosine between
-/// the first inner update α ⊙ ∇L(F_θ(x_down), x) and ∇L(F_θ(x), y), over the adapting
-/// parameters (α per tensor from step_sizes, else inner_lr). Near 0, the self-supervised step
-/// carries no information about x → y; > 0, it lowers the supervised loss to first order.
-/// Meta-training is meant to raise it (docs/design.md); no graph is kept.
+/// Whether the first inner step points downhill on a supervised task: the cosine between the
+/// first inner update α ⊙ ∇L(F_θ(x_down), x) and ∇L(F_θ(x_sup), y_sup), over the adapting
+/// parameters (α per tensor from step_sizes, else inner_lr). With (x_sup, y_sup) the pair of
+/// x itself: near 0, the self-supervised step carries no information about x → y; > 0, it
+/// lowers the supervised loss to first order. With another input's pair it measures how much
+/// of that is input-specific rather than a direction that helps every input (docs/design.md).
+/// No graph is kept.
 double first_step_alignment(const Backbone& model, const ParamMap& params, const at::Tensor& x_down,
-                            const at::Tensor& x, const at::Tensor& y, const MetaOptions& options,
-                            const StepSizes& step_sizes);
+                            const at::Tensor& x, const at::Tensor& x_sup, const at::Tensor& y_sup,
+                            const MetaOptions& options, const StepSizes& step_sizes);
 
 struct MetaStepResult {
     double outer_loss = 0;         ///< mean over tasks of L(F_θn(X_n), Y_n)

@@ -90,9 +90,14 @@ AdaptationScore score_adaptation(const Backbone& model, const ValidationSet& val
                                  /*create_graph=*/false, &losses);
         score.inner_loss_before += losses.front() / n;
         score.inner_loss_after += losses.back() / n;
-        score.alignment += first_step_alignment(model, model.parameters(), x_down, x,
+        score.alignment += first_step_alignment(model, model.parameters(), x_down, x, x,
                                                 val.gt.slice(0, i, i + 1), meta, step_sizes) /
                            n;
+        const int64_t j = (i + 1) % n;  // another held-out task (another mesh, mostly)
+        score.alignment_other +=
+            first_step_alignment(model, model.parameters(), x_down, x, val.input.slice(0, j, j + 1),
+                                 val.gt.slice(0, j, j + 1), meta, step_sizes) /
+            n;
         at::NoGradGuard no_grad;
         before.push_back(model.upsample(x));
         after.push_back(model.upsample(x, adapted));
@@ -109,10 +114,11 @@ AdaptationScore score_adaptation(const Backbone& model, const ValidationSet& val
                                  {"cd_after", scalar(score.cd_after)},
                                  {"inner_before", scalar(score.inner_loss_before)},
                                  {"inner_after", scalar(score.inner_loss_after)},
-                                 {"alignment", scalar(score.alignment)}});
-    return {totals["cd_before"].item<double>(), totals["cd_after"].item<double>(),
+                                 {"alignment", scalar(score.alignment)},
+                                 {"alignment_other", scalar(score.alignment_other)}});
+    return {totals["cd_before"].item<double>(),    totals["cd_after"].item<double>(),
             totals["inner_before"].item<double>(), totals["inner_after"].item<double>(),
-            totals["alignment"].item<double>()};
+            totals["alignment"].item<double>(),    totals["alignment_other"].item<double>()};
 }
 
 /// Combines one outer step over the ranks in one collective: the gradients and losses as
@@ -237,12 +243,13 @@ MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume, double st
                               {"val_inner_before", last.inner_loss_before},
                               {"val_inner_after", last.inner_loss_after},
                               {"val_alignment", last.alignment},
+                              {"val_alignment_other", last.alignment_other},
                               {"best", improved}});
         spdlog::info(
             "meta-train: step {} val CD {:.4e} -> {:.4e} after adaptation (inner "
-            "{:.4e} -> {:.4e}, first-step alignment {:+.3f})",
+            "{:.4e} -> {:.4e}, first-step alignment {:+.3f}, with another task's {:+.3f})",
             step, last.cd_before, last.cd_after, last.inner_loss_before, last.inner_loss_after,
-            last.alignment);
+            last.alignment, last.alignment_other);
     };
 
     if (val && step == 0) validate();

@@ -56,6 +56,9 @@ struct AdaptationScore {
     /// Mean first_step_alignment() of the tasks: does the first inner step point downhill
     /// on X → Y?
     double alignment = 0;
+    /// The same with the next task's supervised pair in place of X → Y: the share of the
+    /// alignment that any input's self-supervised step would give.
+    double alignment_other = 0;
 };
 
 struct MetaTrainResult {
