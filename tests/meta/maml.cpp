@@ -263,6 +263,30 @@ TEST(Maml, AdaptationLowersTheSelfSupervisedLossAndLeavesTheModelUnchanged) {
     for (auto& [name, p] : model->parameters()) EXPECT_TRUE(p.equal(before[name])) << name;
 }
 
+TEST(Maml, AdamInnerStepsLowerTheLossAndAreRefusedInMetaTraining) {
+    auto model = tiny_model(false);
+    Tasks tasks = tiny_tasks(1, false);
+    MetaOptions options;
+    options.inner_steps = 10;
+    options.inner_lr = 1e-3;
+    options.inner_optimizer = "adam";
+    at::Tensor x_down = model->downsample(tasks.x, 2);
+    std::vector<double> losses;
+    ParamMap fast =
+        adapt(*model, model->parameters(), x_down, tasks.x, options, {}, false, &losses);
+    EXPECT_LT(losses.back(), 0.9 * losses.front());
+    // Adam's first step moves every weight with a gradient by about the learning rate.
+    const auto& [name, p] = *model->parameters().begin();
+    options.inner_steps = 1;
+    ParamMap one = adapt(*model, model->parameters(), x_down, tasks.x, options, {}, false);
+    at::Tensor moved = (one.at(name) - p.detach()).abs();
+    EXPECT_NEAR(moved.max().item<double>(), 1e-3, 1e-5) << name;
+    EXPECT_THROW(adapt(*model, model->parameters(), x_down, tasks.x, options, {}, true),
+                 InputError);
+    options.inner_optimizer = "rmsprop";
+    EXPECT_THROW(MetaOptions::from_json(options.to_json()), InputError);
+}
+
 TEST(Maml, OnlyListedParametersAdapt) {
     auto model = tiny_model(false);
     Tasks tasks = tiny_tasks(1, false);

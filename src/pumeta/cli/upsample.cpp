@@ -26,6 +26,7 @@ struct ModelArgs {
     double tta_lr = -1;      // <0: the model's meta-trained alpha
     std::string tta_unit = "object";
     std::string tta_downsampler;  // the backbone's
+    std::string tta_optimizer;    // the model's (sgd)
     int64_t batch_patches = 0;    // the backbone's
     std::string device = "cpu";
 };
@@ -53,6 +54,11 @@ void add_model_options(CLI::App& command, ModelArgs& args) {
                     "backbone's training sampler)")
         ->check(CLI::IsMember({"fps", "random", "nonuniform"}));
     command
+        .add_option("--tta-optimizer", args.tta_optimizer,
+                    "inner steps: sgd (the paper's) or adam (learning rate --tta-lr); default "
+                    "sgd")
+        ->check(CLI::IsMember({"sgd", "adam"}));
+    command
         .add_option("--batch-patches", args.batch_patches,
                     "patches per forward pass (default: the backbone's fastest, 64 for PU-GCN "
                     "and Dis-PU, 2 for PU-Dense)")
@@ -68,6 +74,7 @@ UpsampleOptions make_upsample_options(const ModelArgs& args, const InferenceMode
     o.tta_unit = args.tta_unit;
     o.tta_downsampler = args.tta_downsampler;
     set_adaptation(o, model, args.tta_lr);
+    if (!args.tta_optimizer.empty()) o.meta.inner_optimizer = args.tta_optimizer;
     o.tta_steps =
         args.tta_steps >= 0 ? args.tta_steps : (model.meta_trained ? model.meta.inner_steps : 0);
     if (args.tta_lr < 0 && !model.meta_trained && o.tta_steps > 0) {

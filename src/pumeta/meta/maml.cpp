@@ -23,6 +23,7 @@ void visit_fields(Self& o, Visit&& visit) {
     visit("learn_inner_lr", o.learn_inner_lr);
     visit("adapt", o.adapt);
     visit("outer_objective", o.outer_objective);
+    visit("inner_optimizer", o.inner_optimizer);
 }
 
 }  // namespace
@@ -35,6 +36,9 @@ MetaOptions MetaOptions::from_json(const nlohmann::json& j) {
     if (o.outer_objective != "loss" && o.outer_objective != "gain")
         throw_input_error("meta config", "outer_objective must be \"loss\" or \"gain\", found '{}'",
                           o.outer_objective);
+    if (o.inner_optimizer != "sgd" && o.inner_optimizer != "adam")
+        throw_input_error("meta config", "inner_optimizer must be \"sgd\" or \"adam\", found '{}'",
+                          o.inner_optimizer);
     return o;
 }
 
@@ -77,6 +81,12 @@ ParamMap adapt(const Backbone& model, const ParamMap& params, const at::Tensor& 
     ParamMap adapting;
     for (const auto& [name, p] : fast)
         if (options.adapts(name)) adapting[name] = p;
+    const bool adam = options.inner_optimizer == "adam";
+    if (adam && create_graph)
+        throw_input_error("meta config",
+                          "inner_optimizer \"adam\" is for test-time adaptation only, not for "
+                          "meta-training");
+    ParamMap first_moment, second_moment;  // Adam's, per adapting tensor
     if (!create_graph) {
         // Test-time adaptation: fresh leaves, so no graph reaches back to the stored model.
         for (auto& [name, p] : fast) p = p.detach();
@@ -92,6 +102,16 @@ ParamMap adapt(const Backbone& model, const ParamMap& params, const at::Tensor& 
         for (auto& [name, p] : adapting) {
             at::Tensor g = grads.at(name);
             auto alpha = step_sizes.find(name);
+            if (adam) {
+                // Bias-corrected Adam (β = 0.9, 0.999; ε = 1e-8), moments from zero.
+                constexpr double b1 = 0.9, b2 = 0.999, eps = 1e-8;
+                at::Tensor& m = first_moment.try_emplace(name, at::zeros_like(g)).first->second;
+                at::Tensor& v = second_moment.try_emplace(name, at::zeros_like(g)).first->second;
+                m = b1 * m + (1 - b1) * g;
+                v = b2 * v + (1 - b2) * g * g;
+                const double t = static_cast<double>(s + 1);
+                g = (m / (1 - std::pow(b1, t))) / ((v / (1 - std::pow(b2, t))).sqrt() + eps);
+            }
             at::Tensor next =
                 alpha != step_sizes.end() ? p - alpha->second * g : p - options.inner_lr * g;
             if (!create_graph) next = next.detach().requires_grad_(true);

@@ -38,6 +38,11 @@ struct MetaOptions {
     /// gradient is ∇L(θ) (more supervised training) plus O(α) terms that make the inner step
     /// useful; "gain" keeps only the latter (docs/design.md). An investigation, not the paper.
     std::string outer_objective = "loss";
+    /// The inner steps' optimiser: "sgd" (the paper's θ ← θ − α∇L) or "adam" (Adam with
+    /// learning rate α, fresh moments per adaptation), for test-time adaptation only: the
+    /// second-order inner loop refuses it. A diagnostic of whether plain gradient steps are
+    /// what limits adaptation (docs/design.md).
+    std::string inner_optimizer = "sgd";
 
     static MetaOptions from_json(const nlohmann::json& j);
     nlohmann::json to_json() const;
