@@ -159,6 +159,40 @@ TEST(Cli, TrainStoppedBySigtermSavesACheckpointAndExits130) {
     EXPECT_TRUE(fs::exists(dir.file("run/state.ckpt")));
 }
 
+TEST(Cli, OracleAdaptationIsAnEvalDiagnosticAndAdamStepsRun) {
+    test::TempDir dir;
+    test::make_tiny_reproduction(dir.path());
+    const std::string cases = dir.file("data/cases/test-indist/x4");
+    const std::string model = dir.file("models/pugcn-x4.pt");
+    auto eval = [&](const std::string& out, std::vector<std::string> extra) {
+        std::vector<std::string> args = {"--threads", "1",       "eval",       "--model",
+                                         model,       "--cases", cases,        "--max-cases",
+                                         "2",         "-o",      dir.file(out)};
+        args.insert(args.end(), extra.begin(), extra.end());
+        auto r = test::run_cli(args);
+        EXPECT_EQ(r.exit_code, 0) << r.err;
+        return nlohmann::json::parse(test::read_file(dir.file(out + "/summary.json")));
+    };
+    auto plain = eval("plain", {"--tta-steps", "0"});
+    auto oracle = eval("oracle", {"--tta-steps", "3", "--tta-lr", "0.05", "--tta-unit", "oracle"});
+    // The untrained model fitted to the ground truth comes closer to it.
+    EXPECT_LT(oracle["cd"]["mean"].get<double>(), plain["cd"]["mean"].get<double>());
+    EXPECT_LT(oracle["tta"]["loss_after"]["mean"].get<double>(),
+              oracle["tta"]["loss_before"]["mean"].get<double>());
+    auto adam = eval("adam", {"--tta-steps", "3", "--tta-lr", "1e-3", "--tta-optimizer", "adam"});
+    EXPECT_LT(adam["tta"]["loss_after"]["mean"].get<double>(),
+              adam["tta"]["loss_before"]["mean"].get<double>());
+
+    // `upsample` has no ground truth: a one-line input error and no output.
+    write_point_cloud(dir.file("in.ply"), {uniform_random_points(60, 1)});
+    auto r = test::run_cli({"upsample", dir.file("in.ply"), "-o", dir.file("out.ply"), "--model",
+                            model, "--tta-steps", "2", "--tta-lr", "0.1", "--tta-unit", "oracle"});
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_TRUE(one_line(r.err)) << r.err;
+    EXPECT_NE(r.err.find("ground truth"), std::string::npos) << r.err;
+    EXPECT_FALSE(fs::exists(dir.file("out.ply")));
+}
+
 TEST(Cli, ReproduceQuickWritesEveryTableAndABadConfigIsAOneLineError) {
     test::TempDir dir;
     std::ofstream(dir.file("reproduce.json")) << test::make_tiny_reproduction(dir.path()).dump();
