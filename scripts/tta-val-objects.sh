@@ -6,8 +6,8 @@
 #   scripts/tta-val-objects.sh MODEL UNIT STEPS α...
 #   scripts/tta-val-objects.sh models/pugcn-x4.pt cloud 5 0.01 0.1 0.3
 #   scripts/tta-val-objects.sh models/pugcn-x4-meta.pt object 5 learned   # Meta-SGD sizes
-# UNIT "oracle" adapts on each object's ground truth instead of X↓ -> X: a diagnostic upper
-# bound on what N steps can gain (docs/design.md), never a result.
+# UNIT "oracle" adapts on each object's ground truth instead of X↓ -> X: what the same N
+# steps gain with a perfect signal, a diagnostic reference (docs/design.md), never a result.
 # "plain" is the same model without adaptation (for a meta-trained model: its own weights).
 # MAX_CASES=N limits the objects (default: all 40); THREADS (default 1); TTA_ARGS: more
 # options of every adapted run, e.g. TTA_ARGS="--tta-downsampler fps".

@@ -99,6 +99,8 @@ class DataParallel : public ::testing::Test {
         save_checkpoint(dir_.file("init.pt"), *make_backbone(kTinyPugcn));
         meta_config_ = {{"init", dir_.file("init.pt")},
                         {"train_data", dir_.file("train.tensors")},
+                        {"val_data", dir_.file("train.tensors")},
+                        {"val_tasks", 4},
                         {"run_dir", dir_.file("unused")},
                         {"meta", {{"inner_steps", 2}, {"inner_lr", 0.05}}},
                         {"tasks_per_batch", 4},
@@ -170,6 +172,17 @@ class DataParallel : public ::testing::Test {
         return records;
     }
 
+    /// The validation records of a run's log.jsonl.
+    static std::vector<nlohmann::json> validation_log(const std::string& run_dir) {
+        std::vector<nlohmann::json> records;
+        std::ifstream in(run_dir + "/log.jsonl");
+        for (std::string line; std::getline(in, line);) {
+            auto j = nlohmann::json::parse(line);
+            if (j.contains("val_cd_before")) records.push_back(j);
+        }
+        return records;
+    }
+
     /// Largest relative difference max|a - b| / max|b| over the parameters of two checkpoints.
     static double max_relative_difference(const std::string& a, const std::string& b) {
         ParamMap pa = load_checkpoint(a).backbone->parameters();
@@ -216,6 +229,17 @@ TEST_F(DataParallel, TwoRanksMetaTrainLikeOneProcessWithTheWholeBatchAndResume) 
                                            "inner_loss_after"};
     expect_same_losses(step_log(dir_.file("two")), one, keys);
     expect_same_losses(step_log(dir_.file("resumed")), one, keys);
+    // Validation (steps 0 and 4) is sharded over the ranks and summed: the same scores,
+    // alignments included, each a mean of cosines.
+    std::vector<nlohmann::json> validated = validation_log(dir_.file("one"));
+    ASSERT_EQ(validated.size(), 2u);
+    expect_same_losses(validation_log(dir_.file("two")), validated,
+                       {"val_cd_before", "val_cd_after", "val_alignment", "val_alignment_other"});
+    for (const nlohmann::json& v : validated)
+        for (const char* key : {"val_alignment", "val_alignment_other"}) {
+            EXPECT_LE(std::abs(v[key].get<double>()), 1.0) << key;
+            EXPECT_GT(std::abs(v[key].get<double>()), 0.0) << key;
+        }
 
     std::string reference = dir_.file("one") + "/model.pt";
     EXPECT_LT(max_relative_difference(dir_.file("two") + "/model.pt", reference), 1e-5);

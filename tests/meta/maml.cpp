@@ -6,10 +6,12 @@
 #include <ATen/ATen.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 #include "pumeta/core/error.h"
 #include "pumeta/geometry/sampling.h"
+#include "pumeta/nn/adam.h"
 #include "pumeta/nn/gradients.h"
 #include "support/test_util.h"
 
@@ -263,28 +265,44 @@ TEST(Maml, AdaptationLowersTheSelfSupervisedLossAndLeavesTheModelUnchanged) {
     for (auto& [name, p] : model->parameters()) EXPECT_TRUE(p.equal(before[name])) << name;
 }
 
-TEST(Maml, AdamInnerStepsLowerTheLossAndAreRefusedInMetaTraining) {
+TEST(Maml, AdamInnerStepsFollowTheAdamOptimiserAndAreRefusedInMetaTraining) {
     auto model = tiny_model(false);
     Tasks tasks = tiny_tasks(1, false);
     MetaOptions options;
     options.inner_steps = 10;
     options.inner_lr = 1e-3;
     options.inner_optimizer = "adam";
+    ParamMap before;
+    for (const auto& [name, p] : model->parameters()) before[name] = p.detach().clone();
     at::Tensor x_down = model->downsample(tasks.x, 2);
     std::vector<double> losses;
     ParamMap fast =
         adapt(*model, model->parameters(), x_down, tasks.x, options, {}, false, &losses);
     EXPECT_LT(losses.back(), 0.9 * losses.front());
-    // Adam's first step moves every weight with a gradient by about the learning rate.
-    const auto& [name, p] = *model->parameters().begin();
-    options.inner_steps = 1;
-    ParamMap one = adapt(*model, model->parameters(), x_down, tasks.x, options, {}, false);
-    at::Tensor moved = (one.at(name) - p.detach()).abs();
-    EXPECT_NEAR(moved.max().item<double>(), 1e-3, 1e-5) << name;
+    // Three steps equal three steps of nn/adam's Adam on copies, fed the same gradients.
+    options.inner_steps = 3;
+    ParamMap three = adapt(*model, model->parameters(), x_down, tasks.x, options, {}, false);
+    ParamMap copies;
+    for (const auto& [name, p] : model->parameters())
+        copies[name] = p.detach().clone().requires_grad_(true);
+    Adam reference(copies, AdamOptions{1e-3});
+    for (int step = 0; step < 3; ++step)
+        reference.step(gradients(model->loss(x_down, tasks.x, copies), copies));
+    for (const auto& [name, p] : copies)
+        EXPECT_TRUE(at::allclose(three.at(name), p.detach(), 1e-5, 1e-7)) << name;
+    // Adam's in-place updates never reach the stored model.
+    for (const auto& [name, p] : model->parameters()) EXPECT_TRUE(p.equal(before.at(name))) << name;
     EXPECT_THROW(adapt(*model, model->parameters(), x_down, tasks.x, options, {}, true),
+                 InputError);
+    // One learning rate: a meta-trained model's per-tensor SGD step sizes are refused.
+    options.learn_inner_lr = true;
+    EXPECT_THROW(adapt(*model, model->parameters(), x_down, tasks.x, options,
+                       make_step_sizes(*model, options), false),
                  InputError);
     options.inner_optimizer = "rmsprop";
     EXPECT_THROW(MetaOptions::from_json(options.to_json()), InputError);
+    EXPECT_THROW(adapt(*model, model->parameters(), x_down, tasks.x, options, {}, false),
+                 InputError);
 }
 
 TEST(Maml, OnlyListedParametersAdapt) {
@@ -333,34 +351,69 @@ TEST(Maml, MetaSgdStepSizesReceiveGradients) {
     EXPECT_NEAR(analytic, numeric, 1e-4 * std::max(1e-8, std::abs(numeric)));
 }
 
-TEST(Maml, FirstStepAlignmentIsOneOnTheSameTaskAndPredictsTheSupervisedChange) {
+/// ⟨a, b⟩ / (‖a‖ ‖b‖) over the tensors of `a` (b may hold more).
+double cosine_of(const ParamMap& a, const ParamMap& b) {
+    double dot = 0, na = 0, nb = 0;
+    for (const auto& [name, t] : a) {
+        dot += (t * b.at(name)).sum().item<double>();
+        na += t.square().sum().item<double>();
+        nb += b.at(name).square().sum().item<double>();
+    }
+    return dot / std::sqrt(na * nb);
+}
+
+TEST(Maml, FirstStepAlignmentIsTheCosineOfTheWeightedUpdateAndPredictsTheSupervisedChange) {
     auto model = tiny_model(true);
-    Tasks tasks = tiny_tasks(1, true);
+    Tasks tasks = tiny_tasks(2, true);
+    at::Tensor x = tasks.x.slice(0, 0, 1), y = tasks.y.slice(0, 0, 1);
+    at::Tensor x2 = tasks.x.slice(0, 1, 2), y2 = tasks.y.slice(0, 1, 2);
     MetaOptions options;
     options.inner_steps = 1;
     options.inner_lr = 1e-6;
     const ParamMap& theta = model->parameters();
     // When the inner task is the supervised one (both L(F(x), x)), the update is its gradient.
-    EXPECT_NEAR(
-        first_step_alignment(*model, theta, tasks.x, tasks.x, tasks.x, tasks.x, options, {}), 1.0,
-        1e-9);
-    at::Tensor x_down = model->downsample(tasks.x, 3);
-    double cosine =
-        first_step_alignment(*model, theta, x_down, tasks.x, tasks.x, tasks.y, options, {});
-    ASSERT_LE(std::abs(cosine), 1.0);
-    ASSERT_GT(std::abs(cosine), 1e-3);  // a fixture where the sign is meaningful
+    EXPECT_NEAR(first_step_alignment(*model, theta, x, x, {{x, x}}, options, {})[0], 1.0, 1e-9);
+
+    at::Tensor x_down = model->downsample(x, 3);
+    std::vector<double> cosines =
+        first_step_alignment(*model, theta, x_down, x, {{x, y}, {x2, y2}}, options, {});
+    ASSERT_EQ(cosines.size(), 2u);
+    // Against gradients computed here: g_self of (x↓, x), g_sup of (x, y) and (x2, y2).
+    ParamMap self = gradients(model->loss(x_down, x, theta), theta);
+    EXPECT_NEAR(cosines[0], cosine_of(self, gradients(model->loss(x, y, theta), theta)), 1e-9);
+    EXPECT_NEAR(cosines[1], cosine_of(self, gradients(model->loss(x2, y2, theta), theta)), 1e-9);
+    ASSERT_GT(std::abs(cosines[0]), 1e-3);  // a fixture where the sign is meaningful
     // One tiny inner step changes the supervised loss by about -α⟨g_self, g_sup⟩.
-    ParamMap fast = adapt(*model, theta, x_down, tasks.x, options, {}, false);
-    double before = model->loss(tasks.x, tasks.y, theta).item<double>();
-    double after = model->loss(tasks.x, tasks.y, fast).item<double>();
-    EXPECT_EQ(cosine > 0, after < before) << cosine << " " << before << " -> " << after;
-    // Per-tensor step sizes weight the update: all but one tensor frozen gives another value.
+    ParamMap fast = adapt(*model, theta, x_down, x, options, {}, false);
+    double before = model->loss(x, y, theta).item<double>();
+    double after = model->loss(x, y, fast).item<double>();
+    EXPECT_EQ(cosines[0] > 0, after < before) << cosines[0] << " " << before << " -> " << after;
+
+    // Per-tensor step sizes weight the update: with one tensor's α non-zero, the cosine is that
+    // tensor's self-supervised gradient against the whole supervised gradient.
+    const std::string& only = theta.begin()->first;
     StepSizes one_tensor;
     for (const auto& [name, p] : theta) one_tensor[name] = at::zeros({}, at::kDouble);
-    one_tensor.begin()->second.fill_(1e-6);
-    double partial =
-        first_step_alignment(*model, theta, x_down, tasks.x, tasks.x, tasks.y, options, one_tensor);
-    EXPECT_GT(std::abs(partial - cosine), 1e-6);
+    one_tensor.at(only).fill_(3e-6);
+    ParamMap only_self = {{only, self.at(only)}};
+    ParamMap supervised = gradients(model->loss(x, y, theta), theta);
+    double supervised_norm = 0;
+    for (const auto& [name, g] : supervised) supervised_norm += g.square().sum().item<double>();
+    double expected = (self.at(only) * supervised.at(only)).sum().item<double>() /
+                      std::sqrt(self.at(only).square().sum().item<double>() * supervised_norm);
+    EXPECT_NEAR(first_step_alignment(*model, theta, x_down, x, {{x, y}}, options, one_tensor)[0],
+                expected, 1e-9);
+    // Parameters that do not adapt are left out of both gradients.
+    options.adapt = {only};
+    EXPECT_NEAR(first_step_alignment(*model, theta, x_down, x, {{x, y}}, options, {})[0],
+                cosine_of(only_self, supervised), 1e-9);
+    // Adam's first step is α·g/(|g| + ε): about α·sign(g).
+    options.adapt = {};
+    options.inner_optimizer = "adam";
+    ParamMap signs;
+    for (const auto& [name, g] : self) signs[name] = g / (g.abs() + 1e-8);
+    EXPECT_NEAR(first_step_alignment(*model, theta, x_down, x, {{x, y}}, options, {})[0],
+                cosine_of(signs, supervised), 1e-9);
 }
 
 }  // namespace

@@ -45,7 +45,7 @@ void add_model_options(CLI::App& command, ModelArgs& args) {
         .add_option("--tta-unit", args.tta_unit,
                     "object: one adaptation on the input's patches, each downsampled; patch: "
                     "one per patch; cloud: one on patches of the downsampled whole input; "
-                    "oracle (eval only): a diagnostic upper bound that adapts on the ground "
+                    "oracle (eval only): a diagnostic reference that adapts on the ground "
                     "truth")
         ->check(CLI::IsMember({"object", "patch", "cloud", "oracle"}));
     command

@@ -274,10 +274,16 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
                                 {"loss_first", loss_before.summary()},
                                 {"loss_last", loss_after.summary()}};
     } else if (options.upsample.tta_steps > 0) {
-        summary["tta"] = {
-            {"steps", options.upsample.tta_steps}, {"unit", options.upsample.tta_unit},
-            {"seconds", tta_seconds.summary()},    {"loss_before", loss_before.summary()},
-            {"loss_after", loss_after.summary()},  {"inner_loss_improved", improved_inner}};
+        summary["tta"] = {{"steps", options.upsample.tta_steps},
+                          {"unit", options.upsample.tta_unit},
+                          {"optimizer", options.upsample.meta.inner_optimizer},
+                          {"lr", options.upsample.step_sizes.empty()
+                                     ? nlohmann::json(options.upsample.meta.inner_lr)
+                                     : nlohmann::json("learned")},
+                          {"seconds", tta_seconds.summary()},
+                          {"loss_before", loss_before.summary()},
+                          {"loss_after", loss_after.summary()},
+                          {"inner_loss_improved", improved_inner}};
     }
     std::ofstream(fs::path(out_dir) / "summary.json") << summary.dump(2) << "\n";
     return summary;

@@ -63,7 +63,8 @@ struct UpsampleResult {
     int64_t patches = 0;     ///< patches upsampled (all passes)
     double seconds = 0;      ///< total wall time
     double tta_seconds = 0;  ///< of which adaptation
-    /// Self-supervised loss L(F(X↓), X) before and after adaptation (NaN without TTA).
+    /// The inner loss before and after adaptation: self-supervised L(F(X↓), X), or with
+    /// tta_unit "oracle" the supervised loss on the ground truth (NaN without TTA).
     double loss_before = std::numeric_limits<double>::quiet_NaN();
     double loss_after = std::numeric_limits<double>::quiet_NaN();
 };

@@ -6,9 +6,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include "pumeta/core/error.h"
 #include "pumeta/core/json_fields.h"
+#include "pumeta/nn/adam.h"
 #include "pumeta/nn/gradients.h"
 
 namespace pumeta {
@@ -31,15 +33,19 @@ void visit_fields(Self& o, Visit&& visit) {
 MetaOptions MetaOptions::from_json(const nlohmann::json& j) {
     MetaOptions o;
     read_fields(j, "meta config", [&](auto&& visit) { visit_fields(o, visit); });
-    if (o.inner_steps < 0) throw_input_error("meta config", "inner_steps must be >= 0");
-    if (o.inner_lr < 0) throw_input_error("meta config", "inner_lr must be >= 0");
-    if (o.outer_objective != "loss" && o.outer_objective != "gain")
-        throw_input_error("meta config", "outer_objective must be \"loss\" or \"gain\", found '{}'",
-                          o.outer_objective);
-    if (o.inner_optimizer != "sgd" && o.inner_optimizer != "adam")
-        throw_input_error("meta config", "inner_optimizer must be \"sgd\" or \"adam\", found '{}'",
-                          o.inner_optimizer);
+    o.check();
     return o;
+}
+
+void MetaOptions::check() const {
+    if (inner_steps < 0) throw_input_error("meta config", "inner_steps must be >= 0");
+    if (inner_lr < 0) throw_input_error("meta config", "inner_lr must be >= 0");
+    if (outer_objective != "loss" && outer_objective != "gain")
+        throw_input_error("meta config", "outer_objective must be \"loss\" or \"gain\", found '{}'",
+                          outer_objective);
+    if (inner_optimizer != "sgd" && inner_optimizer != "adam")
+        throw_input_error("meta config", "inner_optimizer must be \"sgd\" or \"adam\", found '{}'",
+                          inner_optimizer);
 }
 
 nlohmann::json MetaOptions::to_json() const {
@@ -77,21 +83,29 @@ StepSizes step_sizes_from_json(const nlohmann::json& j) {
 ParamMap adapt(const Backbone& model, const ParamMap& params, const at::Tensor& x_down,
                const at::Tensor& x, const MetaOptions& options, const StepSizes& step_sizes,
                bool create_graph, std::vector<double>* losses) {
-    ParamMap fast = params;
-    ParamMap adapting;
-    for (const auto& [name, p] : fast)
-        if (options.adapts(name)) adapting[name] = p;
+    options.check();
     const bool adam = options.inner_optimizer == "adam";
     if (adam && create_graph)
         throw_input_error("meta config",
                           "inner_optimizer \"adam\" is for test-time adaptation only, not for "
                           "meta-training");
-    ParamMap first_moment, second_moment;  // Adam's, per adapting tensor
+    if (adam && !step_sizes.empty())
+        throw_input_error("--tta-optimizer",
+                          "adam takes one learning rate (--tta-lr), not a meta-trained model's "
+                          "per-tensor SGD step sizes");
+    ParamMap fast = params;
+    ParamMap adapting;
+    for (const auto& [name, p] : fast)
+        if (options.adapts(name)) adapting[name] = p;
     if (!create_graph) {
-        // Test-time adaptation: fresh leaves, so no graph reaches back to the stored model.
+        // Test-time adaptation: fresh leaves, so no graph reaches back to the stored model, and
+        // copies for the adapting ones, which Adam updates in place.
         for (auto& [name, p] : fast) p = p.detach();
-        for (auto& [name, p] : adapting) p = fast[name].requires_grad_(true);
+        for (auto& [name, p] : adapting) p = fast[name] = fast[name].clone().requires_grad_(true);
     }
+    // Adam (fresh moments) updates the leaves in place; fast holds the same tensors.
+    std::optional<Adam> optimizer;
+    if (adam) optimizer.emplace(adapting, AdamOptions{options.inner_lr});
     for (int64_t s = 0; s <= options.inner_steps; ++s) {
         bool last = s == options.inner_steps;
         if (last && !losses) break;
@@ -99,19 +113,13 @@ ParamMap adapt(const Backbone& model, const ParamMap& params, const at::Tensor& 
         if (losses) losses->push_back(loss.item<double>());
         if (last) break;
         ParamMap grads = gradients(loss, adapting, create_graph && !options.first_order);
+        if (optimizer) {
+            optimizer->step(grads);
+            continue;
+        }
         for (auto& [name, p] : adapting) {
             at::Tensor g = grads.at(name);
             auto alpha = step_sizes.find(name);
-            if (adam) {
-                // Bias-corrected Adam (β = 0.9, 0.999; ε = 1e-8), moments from zero.
-                constexpr double b1 = 0.9, b2 = 0.999, eps = 1e-8;
-                at::Tensor& m = first_moment.try_emplace(name, at::zeros_like(g)).first->second;
-                at::Tensor& v = second_moment.try_emplace(name, at::zeros_like(g)).first->second;
-                m = b1 * m + (1 - b1) * g;
-                v = b2 * v + (1 - b2) * g * g;
-                const double t = static_cast<double>(s + 1);
-                g = (m / (1 - std::pow(b1, t))) / ((v / (1 - std::pow(b2, t))).sqrt() + eps);
-            }
             at::Tensor next =
                 alpha != step_sizes.end() ? p - alpha->second * g : p - options.inner_lr * g;
             if (!create_graph) next = next.detach().requires_grad_(true);
@@ -124,33 +132,42 @@ ParamMap adapt(const Backbone& model, const ParamMap& params, const at::Tensor& 
     return fast;
 }
 
-double first_step_alignment(const Backbone& model, const ParamMap& params, const at::Tensor& x_down,
-                            const at::Tensor& x, const at::Tensor& x_sup, const at::Tensor& y_sup,
-                            const MetaOptions& options, const StepSizes& step_sizes) {
+std::vector<double> first_step_alignment(const Backbone& model, const ParamMap& params,
+                                         const at::Tensor& x_down, const at::Tensor& x,
+                                         const std::vector<SupervisedPair>& supervised,
+                                         const MetaOptions& options, const StepSizes& step_sizes) {
     ParamMap fast, adapting;
     for (const auto& [name, p] : params) {
         fast[name] = p.detach();
         if (options.adapts(name)) adapting[name] = fast[name].requires_grad_(true);
     }
-    ParamMap self = gradients(model.loss(x_down, x, fast), adapting);
-    ParamMap supervised = gradients(model.loss(x_sup, y_sup, fast), adapting);
-    double dot = 0, self_norm = 0, supervised_norm = 0;
-    for (const auto& [name, g] : self) {
+    // The first update: α ⊙ g for SGD; Adam's first bias-corrected step is α g / (|g| + ε).
+    ParamMap update = gradients(model.loss(x_down, x, fast), adapting);
+    for (auto& [name, g] : update) {
+        if (options.inner_optimizer == "adam") g = g / (g.abs() + AdamOptions{}.eps);
         auto alpha = step_sizes.find(name);
-        at::Tensor update =
-            alpha != step_sizes.end() ? g * alpha->second.detach() : g * options.inner_lr;
-        const at::Tensor& h = supervised.at(name);
-        dot += (update * h).sum().item<double>();
-        self_norm += update.square().sum().item<double>();
-        supervised_norm += h.square().sum().item<double>();
+        g = g *
+            (alpha != step_sizes.end() ? alpha->second.detach().item<double>() : options.inner_lr);
     }
-    if (self_norm == 0 || supervised_norm == 0) return 0;
-    return dot / std::sqrt(self_norm * supervised_norm);
+    double update_norm = 0;
+    for (const auto& [name, u] : update) update_norm += u.square().sum().item<double>();
+    std::vector<double> cosines;
+    for (const SupervisedPair& pair : supervised) {
+        ParamMap h = gradients(model.loss(pair.input, pair.target, fast), adapting);
+        double dot = 0, norm = 0;
+        for (const auto& [name, u] : update) {
+            dot += (u * h.at(name)).sum().item<double>();
+            norm += h.at(name).square().sum().item<double>();
+        }
+        cosines.push_back(update_norm == 0 || norm == 0 ? 0 : dot / std::sqrt(update_norm * norm));
+    }
+    return cosines;
 }
 
 MetaStepResult meta_gradient(const Backbone& model, const at::Tensor& x, const at::Tensor& y,
                              const MetaOptions& options, const StepSizes& step_sizes, uint64_t seed,
                              int64_t step) {
+    options.check();
     const ParamMap& theta = model.parameters();
     int64_t tasks = x.size(0);
     MetaStepResult result;

@@ -3,7 +3,8 @@
 //
 // Task n: a training pair (X_n, Y_n). Inner loop (adaptation): N steps of
 //   θ_n ← θ_n − α ⊙ ∇ L(F_θn(X_n↓), X_n),   X_n↓ = backbone.downsample(X_n)
-// Outer loss: mean_n L(F_θn(X_n), Y_n), differentiated w.r.t. the original θ (and α with
+// Outer loss: mean_n L(F_θn(X_n), Y_n) (or, as an investigation, what adaptation gains:
+// MetaOptions::outer_objective), differentiated w.r.t. the original θ (and α with
 // Meta-SGD). Second-order by default: the inner gradients stay in the graph.
 #pragma once
 
@@ -39,12 +40,15 @@ struct MetaOptions {
     /// useful; "gain" keeps only the latter (docs/design.md). An investigation, not the paper.
     std::string outer_objective = "loss";
     /// The inner steps' optimiser: "sgd" (the paper's θ ← θ − α∇L) or "adam" (Adam with
-    /// learning rate α, fresh moments per adaptation), for test-time adaptation only: the
-    /// second-order inner loop refuses it. A diagnostic of whether plain gradient steps are
-    /// what limits adaptation (docs/design.md).
+    /// learning rate inner_lr, fresh moments per adaptation, no per-tensor step sizes), for
+    /// test-time adaptation only: meta-training refuses it. A diagnostic of whether plain
+    /// gradient steps are what limits adaptation (docs/design.md).
     std::string inner_optimizer = "sgd";
 
     static MetaOptions from_json(const nlohmann::json& j);
+    /// InputError naming the field for a negative count or step size or an unknown
+    /// outer_objective / inner_optimizer (adapt() and meta_gradient() check too).
+    void check() const;
     nlohmann::json to_json() const;
     /// Whether parameter `name` adapts in the inner loop.
     bool adapts(const std::string& name) const;
@@ -70,24 +74,30 @@ ParamMap adapt(const Backbone& model, const ParamMap& params, const at::Tensor& 
                const at::Tensor& x, const MetaOptions& options, const StepSizes& step_sizes,
                bool create_graph, std::vector<double>* losses = nullptr);
 
-/// Whether the first inner step points downhill on a supervised task: the cosine between the
-/// first inner update α ⊙ ∇L(F_θ(x_down), x) and ∇L(F_θ(x_sup), y_sup), over the adapting
-/// parameters (α per tensor from step_sizes, else inner_lr). With (x_sup, y_sup) the pair of
-/// x itself: near 0, the self-supervised step carries no information about x → y; > 0, it
-/// lowers the supervised loss to first order. With another input's pair it measures how much
-/// of that is input-specific rather than a direction that helps every input (docs/design.md).
-/// No graph is kept.
-double first_step_alignment(const Backbone& model, const ParamMap& params, const at::Tensor& x_down,
-                            const at::Tensor& x, const at::Tensor& x_sup, const at::Tensor& y_sup,
-                            const MetaOptions& options, const StepSizes& step_sizes);
+/// A supervised pair (X, Y) for first_step_alignment(): input [1,n,3], target [1,rn,3].
+struct SupervisedPair {
+    at::Tensor input, target;
+};
+
+/// Whether the first inner step points downhill on supervised tasks: for each pair, the
+/// cosine between the first inner update (α ⊙ ∇L(F_θ(x_down), x) for SGD, α per tensor from
+/// step_sizes, else inner_lr; Adam's first step α ∇L / (|∇L| + ε) with inner_optimizer
+/// "adam") and ∇L(F_θ(X), Y), over the adapting parameters. Positive: a small first step
+/// lowers that pair's supervised loss (to first order). With x's own pair it says whether the
+/// self-supervised step carries information about x → y; with another input's pair, how much
+/// of that any input's step would give (docs/design.md). No graph is kept.
+std::vector<double> first_step_alignment(const Backbone& model, const ParamMap& params,
+                                         const at::Tensor& x_down, const at::Tensor& x,
+                                         const std::vector<SupervisedPair>& supervised,
+                                         const MetaOptions& options, const StepSizes& step_sizes);
 
 struct MetaStepResult {
     double outer_loss = 0;         ///< mean over tasks of L(F_θn(X_n), Y_n)
     double outer_loss_before = 0;  ///< mean over tasks of L(F_θ(X_n), Y_n) (no adaptation)
     double inner_loss_before = 0;  ///< mean self-supervised loss before the first inner step
     double inner_loss_after = 0;   ///< ... and after the last
-    ParamMap grads;                ///< d outer / d θ, named like the parameters
-    ParamMap step_size_grads;      ///< d outer / d α (Meta-SGD only)
+    ParamMap grads;  ///< d objective / d θ (outer_objective: L(θ') or L(θ') − L(θ)), by name
+    ParamMap step_size_grads;  ///< d outer / d α (Meta-SGD only)
     /// Tasks left out because their inner loop diverged; the means above are over the rest.
     int64_t dropped_tasks = 0;
     /// Tasks in the batch, dropped ones included.

@@ -65,6 +65,10 @@ MetaTrainConfig MetaTrainConfig::from_json(const nlohmann::json& j) {
                           "tasks_per_batch {} does not split evenly over {} processes",
                           c.tasks_per_batch, c.distributed.world_size);
     parse_input_sampler(c.sampler);
+    if (c.meta.inner_optimizer == "adam" && c.steps > 0)
+        throw_input_error("meta-train config",
+                          "meta.inner_optimizer \"adam\" is for test-time adaptation only (steps "
+                          "= 0 validates with it)");
     return c;
 }
 
@@ -90,14 +94,16 @@ AdaptationScore score_adaptation(const Backbone& model, const ValidationSet& val
                                  /*create_graph=*/false, &losses);
         score.inner_loss_before += losses.front() / n;
         score.inner_loss_after += losses.back() / n;
-        score.alignment += first_step_alignment(model, model.parameters(), x_down, x, x,
-                                                val.gt.slice(0, i, i + 1), meta, step_sizes) /
-                           n;
-        const int64_t j = (i + 1) % n;  // another held-out task (another mesh, mostly)
-        score.alignment_other +=
-            first_step_alignment(model, model.parameters(), x_down, x, val.input.slice(0, j, j + 1),
-                                 val.gt.slice(0, j, j + 1), meta, step_sizes) /
-            n;
+        // The task's own supervised pair, and the next task's (another mesh, mostly; the same
+        // task when there is only one).
+        const int64_t j = (i + 1) % n;
+        std::vector<double> cosines =
+            first_step_alignment(model, model.parameters(), x_down, x,
+                                 {{x, val.gt.slice(0, i, i + 1)},
+                                  {val.input.slice(0, j, j + 1), val.gt.slice(0, j, j + 1)}},
+                                 meta, step_sizes);
+        score.alignment += cosines[0] / n;
+        score.alignment_other += cosines[1] / n;
         at::NoGradGuard no_grad;
         before.push_back(model.upsample(x));
         after.push_back(model.upsample(x, adapted));
