@@ -5,7 +5,8 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
-scripts/build.sh
+# The CLI alone: the tests and benchmarks are built by scripts/test.sh.
+PUMETA_BUILD_TARGETS=pumeta_cli scripts/build.sh
 scripts/get-data.sh
 pumeta=build/pumeta
 out=demo

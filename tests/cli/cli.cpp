@@ -7,6 +7,7 @@
 #include <fstream>
 
 #include "pumeta/data/patch_set.h"
+#include "pumeta/data/shapes.h"
 #include "pumeta/geometry/io.h"
 #include "pumeta/geometry/sampling.h"
 #include "pumeta/models/checkpoint.h"
@@ -52,6 +53,68 @@ TEST(Cli, BadInputsGiveExitTwoAndNoOutputFile) {
         test::run_cli({"convert", dir.file("nan.xyz"), "-o", dir.file("ok.ply"), "--drop-invalid"});
     EXPECT_EQ(r.exit_code, 0) << r.err;
     EXPECT_EQ(read_point_cloud(dir.file("ok.ply")).size(), 2);
+}
+
+TEST(Cli, NumericOptionsAreValidatedWithOneLine) {
+    test::TempDir dir;
+    write_point_cloud(dir.file("in.ply"), {uniform_random_points(40, 1)});
+    const std::string in = dir.file("in.ply"), out = dir.file("out.ply");
+    const std::vector<std::pair<std::vector<std::string>, std::string>> cases = {
+        {{"upsample", in, "-o", out, "--method", "midpoint", "--ratio", "0"}, "--ratio"},
+        {{"upsample", in, "-o", out, "--method", "midpoint", "--ratio", "-1"}, "--ratio"},
+        {{"upsample", in, "-o", out, "--method", "midpoint", "--ratio", "2.5"}, "--ratio"},
+        {{"upsample", in, "-o", out, "--tta-steps", "-5"}, "--tta-steps"},
+        {{"upsample", in, "-o", out, "--tta-lr", "nan"}, "--tta-lr"},
+        {{"upsample", in, "-o", out, "--tta-lr", "-0.1"}, "--tta-lr"},
+        {{"upsample", in, "-o", out, "--seed", "-3"}, "--seed"},
+        {{"upsample", in, "-o", out, "--batch-patches", "0"}, "--batch-patches"},
+        {{"--threads", "0", "upsample", in, "-o", out}, "--threads"},
+        {{"sample", in, "-n", "0", "-o", out}, "--count"},
+        {{"render", in, "-o", dir.file("a.png"), "--point-radius", "inf"}, "--point-radius"},
+    };
+    for (const auto& [args, option] : cases) {
+        auto r = test::run_cli(args);
+        const std::string shown = args[args.size() - 2] + " " + args.back();
+        EXPECT_EQ(r.exit_code, 2) << shown << ": " << r.err;
+        EXPECT_TRUE(one_line(r.err)) << shown << ": " << r.err;
+        EXPECT_EQ(r.err.rfind("pumeta: error: ", 0), 0u) << r.err;
+        EXPECT_NE(r.err.find(option), std::string::npos) << r.err;
+        EXPECT_LT(r.err.size(), 200u) << r.err;  // no 310-digit range
+        EXPECT_FALSE(fs::exists(out)) << shown;
+    }
+}
+
+// The same input and seed give the same bytes on any thread count, also with an OpenBLAS
+// kernel whose multi-threaded products round differently with the thread count (Haswell's,
+// where the CPU has it), with test-time adaptation and on a cloud large enough for the
+// ownership merge.
+TEST(Cli, UpsampleGivesTheSameBytesWithOneOrTwoThreads) {
+    test::TempDir dir;
+    write_point_cloud(dir.file("small.ply"), {sample_uniform(generate_shape(3), 2048, 1).points});
+    write_point_cloud(dir.file("large.ply"), {sample_uniform(generate_shape(3), 12000, 2).points});
+    std::vector<std::string> kernels = {"default"};
+    if (test::read_file("/proc/cpuinfo").find(" avx2") != std::string::npos)
+        kernels.push_back("Haswell");
+    const std::string meta = test::source_dir() + "/models/pugcn-x4-meta.pt";
+    for (const std::string& kernel : kernels)
+        for (const std::string& input : {"small", "large"}) {
+            std::string outputs[2];
+            for (int threads : {1, 2}) {
+                outputs[threads - 1] = dir.file(input + std::to_string(threads) + ".ply");
+                std::vector<std::string> args = {"-u", "OPENBLAS_CORETYPE"};
+                if (kernel != "default") args = {"OPENBLAS_CORETYPE=" + kernel};
+                for (const std::string& arg :
+                     {test::cli_path(), std::string("--threads"), std::to_string(threads),
+                      std::string("upsample"), dir.file(input + ".ply"), std::string("-o"),
+                      outputs[threads - 1], std::string("--model"), meta,
+                      std::string("--tta-steps"), std::string("2")})
+                    args.push_back(arg);
+                auto r = test::run_command("env", args);
+                ASSERT_EQ(r.exit_code, 0) << r.err;
+            }
+            EXPECT_EQ(test::read_file(outputs[0]), test::read_file(outputs[1]))
+                << kernel << " kernel, " << input << " input";
+        }
 }
 
 TEST(Cli, MetricsJsonHasTheContractKeys) {

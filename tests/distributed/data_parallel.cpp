@@ -219,8 +219,10 @@ TEST_F(DataParallel, TwoRanksMetaTrainLikeOneProcessWithTheWholeBatchAndResume) 
     run_ranks("meta-train", config, dir_.file("two"), 2);
     // Two ranks for two steps, resumed by two ranks for one more and by one for the last.
     run_ranks("meta-train", config, dir_.file("resumed"), 2, {"--set", "steps=2"});
-    run_ranks("meta-train", config, dir_.file("resumed"), 2, {"--set", "steps=3", "--resume"});
-    run_ranks("meta-train", config, dir_.file("resumed"), 1, {"--set", "steps=4", "--resume"});
+    run_ranks("meta-train", config, dir_.file("resumed"), 2,
+              {"--set", "steps=3", "--resume", "--allow-change", "steps"});
+    run_ranks("meta-train", config, dir_.file("resumed"), 1,
+              {"--set", "steps=4", "--resume", "--allow-change", "steps"});
     if (HasFailure()) return;
 
     std::vector<nlohmann::json> one = step_log(dir_.file("one"));

@@ -2,6 +2,7 @@
 // coordinates, writer checks and atomic writes.
 #include <ATen/ATen.h>
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <filesystem>
 #include <random>
@@ -91,6 +92,42 @@ TEST(IoDispatch, MissingEmptyAndDirectoryInputsAreReported) {
     const std::string blank = dir.file("blank.xyz");
     test::write_file(blank, "\n# only a comment\n");
     EXPECT_TRUE(throws_input_error([&] { read_point_cloud(blank); }, {blank, "no points"}));
+}
+
+TEST(IoDispatch, OnlyRegularFilesAreRead) {
+    test::TempDir dir;
+    // A FIFO with no writer used to block the read forever.
+    const std::string fifo = dir.file("pipe.xyz");
+    ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+    EXPECT_TRUE(throws_input_error([&] { read_point_cloud(fifo); },
+                                   {fifo, "is a FIFO", "only regular files are read"}));
+    // A device without end used to grow until memory ran out.
+    EXPECT_TRUE(throws_input_error([] { read_point_cloud("/dev/zero", {"xyz"}); },
+                                   {"/dev/zero", "is a character device"}));
+}
+
+TEST(IoDispatch, Utf8ByteOrderMarkIsSkippedInTextFormats) {
+    test::TempDir dir;
+    const std::string bom = "\xEF\xBB\xBF";
+    const std::vector<std::pair<std::string, std::string>> files = {
+        {"a.xyz", "0.45 1 2\n3 4 5\n"},
+        {"a.obj", "v 0.45 1 2\nv 3 4 5\n"},
+        {"a.off", "OFF\n2 0 0\n0.45 1 2\n3 4 5\n"},
+        {"a.ply",
+         "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float "
+         "y\nproperty float z\nend_header\n0.45 1 2\n3 4 5\n"},
+        {"a.pcd",
+         "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\nWIDTH 2\n"
+         "HEIGHT 1\nPOINTS 2\nDATA ascii\n0.45 1 2\n3 4 5\n"}};
+    for (const auto& [name, text] : files) {
+        const std::string path = dir.file(name);
+        test::write_file(path, bom + text);
+        const PointCloud cloud = read_point_cloud(path);
+        EXPECT_TRUE(at::equal(cloud.points, float_rows({0.45f, 1, 2, 3, 4, 5}))) << name;
+    }
+    const std::string only = dir.file("only.xyz");
+    test::write_file(only, bom);
+    EXPECT_TRUE(throws_input_error([&] { read_point_cloud(only); }, {only, "byte order mark"}));
 }
 
 TEST(IoDispatch, Utf16TextIsRejectedClearly) {

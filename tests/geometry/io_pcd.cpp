@@ -88,6 +88,42 @@ TEST(IoPcd, BinaryHonoursSizeTypeAndCount) {
         {path, "truncated binary PCD", "2 points of 35 bytes", "only 69 bytes follow"}));
 }
 
+// Found by fuzzing: a COUNT so large that the record size wrapped to 0 (a division by zero),
+// fields of COUNT 0 read anyway, and offsets that wrapped to read outside the buffer.
+TEST(IoPcd, FieldCountsAreBoundedAndOffsetsCannotWrap) {
+    test::TempDir dir;
+    const std::string path = dir.file("counts.pcd");
+    // 4 bytes * 2^62 wraps a 64-bit record size to 0.
+    test::write_file(
+        path, binary_header("x y z w", "4 4 4 4", "F F F F", "1 1 1 4611686018427387904", 1) +
+                  std::string(16, '\0'));
+    EXPECT_TRUE(throws_input_error(
+        [&] { read_point_cloud(path); },
+        {path, "field 'w' has COUNT 4611686018427387904", "expected 1 to 65536"}));
+    for (const char* encoding : {"binary", "ascii"}) {
+        std::string header = binary_header("x y z normal_x normal_y normal_z", "4 4 4 4 4 4",
+                                           "F F F F F F", "1 1 1 0 1 1", 1);
+        header.replace(header.rfind("binary"), 6, encoding);
+        test::write_file(path, header + std::string(20, '\0'));
+        EXPECT_TRUE(throws_input_error([&] { read_point_cloud(path); },
+                                       {path, "field 'normal_x' has COUNT 0"}));
+    }
+    // A field far out of a record's reach: offsets of 2^60 bytes used to wrap around.
+    test::write_file(
+        path, binary_header("pad x y z", "8 4 4 4", "F F F F", "1152921504606846976 1 1 1", 1) +
+                  std::string(20, '\0'));
+    EXPECT_TRUE(
+        throws_input_error([&] { read_point_cloud(path); }, {path, "field 'pad' has COUNT"}));
+    // A normal that is a vector of 3 is no normal: read without normals, not past its value.
+    std::string vector_normals = binary_header("x y z normal_x normal_y normal_z", "4 4 4 4 4 4",
+                                               "F F F F F F", "1 1 1 3 1 1", 1);
+    for (float v : {1.f, 2.f, 3.f, 9.f, 9.f, 9.f, 0.f, 1.f}) put_bytes<float>(vector_normals, v);
+    test::write_file(path, vector_normals);
+    const PointCloud cloud = read_point_cloud(path);
+    EXPECT_TRUE(at::equal(cloud.points, float_rows({1, 2, 3})));
+    EXPECT_FALSE(cloud.has_normals());
+}
+
 TEST(IoPcd, UnsupportedAndMalformedFilesAreReported) {
     test::TempDir dir;
     const std::string path = dir.file("bad.pcd");

@@ -220,6 +220,47 @@ TEST(IoPly, HugeDeclaredCountsAreRejectedBeforeAllocation) {
                                    {path, "declares 900000000000 'vertex' rows"}));
 }
 
+// Found by fuzzing: the up-front size check assumes empty lists, so a list element before a
+// list-free one moved the reader past what that check had covered.
+TEST(IoPly, ListElementBeforeVerticesIsBoundedByTheBuffer) {
+    test::TempDir dir;
+    const std::string path = dir.file("faces-first.ply");
+    const std::string header =
+        "ply\nformat binary_little_endian 1.0\nelement face 1\n"
+        "property list uchar int vertex_indices\nelement vertex 3\nproperty float x\n"
+        "property float y\nproperty float z\nend_header\n";
+    std::string bytes = header;
+    put_bytes<uint8_t>(bytes, 3);
+    for (int32_t i : {0, 1, 2}) put_bytes<int32_t>(bytes, i);
+    for (float v : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 0.f}) put_bytes<float>(bytes, v);
+    test::write_file(path, bytes);
+    // Complete: faces first is legal.
+    const Geometry mesh = read_geometry(path);
+    EXPECT_TRUE(at::equal(mesh.faces, index_rows({0, 1, 2})));
+    EXPECT_TRUE(at::equal(mesh.cloud.points, float_rows({0, 0, 0, 1, 0, 0, 0, 1, 0})));
+    // The vertex block short by the list's 12 bytes, which the up-front check cannot see.
+    test::write_file(path, bytes.substr(0, bytes.size() - 12));
+    EXPECT_TRUE(throws_input_error([&] { read_geometry(path); },
+                                   {path, "truncated binary PLY", "element 'vertex'",
+                                    "3 rows of 12 bytes", "only 24 bytes remain"}));
+    // A skipped list-free element after a list element (the skip used to land past the end).
+    std::string skipped = header;
+    skipped.insert(skipped.find("end_header"), "element extra 2\nproperty double w\n");
+    std::string body = bytes.substr(header.size());
+    test::write_file(path, skipped + body + std::string(8, '\0'));
+    EXPECT_TRUE(throws_input_error([&] { read_geometry(path); },
+                                   {path, "truncated binary PLY", "element 'extra'",
+                                    "2 rows of 8 bytes", "only 8 bytes remain"}));
+}
+
+// Found by fuzzing: a binary element with zero rows copied from a null pointer.
+TEST(IoPly, EmptyBinaryVertexElementIsAnEmptyFile) {
+    test::TempDir dir;
+    const std::string path = dir.file("none.ply");
+    test::write_file(path, binary_cloud_header("0"));
+    EXPECT_TRUE(throws_input_error([&] { read_point_cloud(path); }, {path, "no points"}));
+}
+
 TEST(IoPly, AsciiFileShorterThanItsHeaderGivesTheLine) {
     test::TempDir dir;
     const std::string path = dir.file("short.ply");

@@ -11,29 +11,9 @@
 
 #include "pumeta/core/error.h"
 #include "pumeta/geometry/point_cloud.h"
+#include "support/test_util.h"
 
 namespace pumeta::test {
-
-/// Success when `action` throws InputError whose one-line message contains every fragment.
-template <typename Action>
-::testing::AssertionResult throws_input_error(Action&& action,
-                                              const std::vector<std::string>& fragments) {
-    try {
-        action();
-    } catch (const InputError& error) {
-        const std::string message = error.what();
-        if (message.find('\n') != std::string::npos)
-            return ::testing::AssertionFailure() << "message spans lines: " << message;
-        for (const std::string& fragment : fragments)
-            if (message.find(fragment) == std::string::npos)
-                return ::testing::AssertionFailure()
-                       << "message '" << message << "' lacks '" << fragment << "'";
-        return ::testing::AssertionSuccess() << message;
-    } catch (const std::exception& error) {
-        return ::testing::AssertionFailure() << "threw a non-InputError: " << error.what();
-    }
-    return ::testing::AssertionFailure() << "did not throw";
-}
 
 /// Appends `value` with its bytes in big-endian (or little-endian) order.
 template <typename T>

@@ -202,5 +202,24 @@ TEST(MidpointUpsample, ExactCountAndPointsBetweenNeighbours) {
     EXPECT_LT(chamfer_distance(out, dense), chamfer_distance(input, dense));
 }
 
+// Large clouds, where FPS would be quadratic, are thinned by sample elimination instead: the
+// same count, and as close to a dense sample as FPS's choice (within 10 %).
+TEST(MidpointUpsample, SampleEliminationReplacesFpsBeyondItsBudget) {
+    at::Tensor input = sphere_points(3000, 9);
+    at::Tensor fps = midpoint_upsample(input, 4, 0);
+    at::Tensor eliminated = midpoint_upsample(input, 4, 0, /*fps_budget=*/0);
+    ASSERT_EQ(eliminated.size(0), 12000);
+    at::Tensor dense = sphere_points(12000, 10);
+    const double cd_fps = chamfer_distance(fps, dense);
+    const double cd_eliminated = chamfer_distance(eliminated, dense);
+    EXPECT_LT(cd_eliminated, 1.1 * cd_fps) << cd_fps;
+    EXPECT_LT(cd_eliminated, chamfer_distance(input, dense));
+    // Every output is one of the candidates: an input point or a midpoint, inside the sphere.
+    EXPECT_LE(eliminated.norm(2, 1).max().item<float>(), 1.0f + 1e-5f);
+    // Duplicated inputs (zero spacing) still give the exact count.
+    at::Tensor doubled = at::cat({input.slice(0, 0, 10), input.slice(0, 0, 10)});
+    EXPECT_EQ(midpoint_upsample(doubled, 4, 0, 0).size(0), 80);
+}
+
 }  // namespace
 }  // namespace pumeta

@@ -6,6 +6,7 @@
 #include <filesystem>
 
 #include "pumeta/core/error.h"
+#include "pumeta/core/sha256.h"
 #include "support/test_util.h"
 
 namespace pumeta {
@@ -109,8 +110,36 @@ TEST(Checkpoint, TruncatedWrongMagicAndMissingFilesAreInputErrors) {
     EXPECT_TRUE(
         contains(load_error(dir.file("magic.ckpt")), "magic.ckpt: not a pumeta checkpoint"));
     test::write_file(dir.file("empty.ckpt"), "");
-    EXPECT_TRUE(contains(load_error(dir.file("empty.ckpt")), "not a pumeta checkpoint"));
-    EXPECT_TRUE(contains(load_error(dir.file("missing.ckpt")), "missing.ckpt: cannot open"));
+    EXPECT_TRUE(contains(load_error(dir.file("empty.ckpt")), "empty.ckpt: file is empty"));
+    EXPECT_TRUE(contains(load_error(dir.file("missing.ckpt")), "missing.ckpt: file not found"));
+}
+
+// A header edited by hand and its hash recomputed (what a fuzzer or a forger does): the stored
+// config asks for a network far larger than the file's tensors, which must fail before the
+// network is allocated (a PU-GCN of width 60,000 would need tens of GiB).
+TEST(Checkpoint, AConfigLargerThanTheFileIsRefusedBeforeAllocating) {
+    test::TempDir dir;
+    save_checkpoint(dir.file("m.ckpt"), *make_backbone(small_config()));
+    const std::string bytes = test::read_file(dir.file("m.ckpt"));
+    const size_t magic = std::string("PUMETA-CKPT\n").size();
+    const size_t end = bytes.find('\n', magic);
+    nlohmann::json header = nlohmann::json::parse(bytes.substr(magic, end - magic));
+    header["config"]["channels"] = 60000;
+    header.erase("sha256");
+    const std::string payload = bytes.substr(end + 1);
+    Sha256 hash;
+    const std::string text = header.dump() + "\n";
+    hash.update(text.data(), text.size());
+    hash.update(payload.data(), payload.size());
+    header["sha256"] = hash.hex_digest();
+    test::write_file(dir.file("forged.ckpt"),
+                     bytes.substr(0, magic) + header.dump() + "\n" + payload);
+    const std::string message = load_error(dir.file("forged.ckpt"));
+    EXPECT_TRUE(contains(message, "forged.ckpt: stored config cannot be rebuilt")) << message;
+    EXPECT_TRUE(contains(message, "larger than the file's tensors")) << message;
+    // The same bytes in memory.
+    EXPECT_THROW(parse_checkpoint("forged.ckpt", test::read_file(dir.file("forged.ckpt"))),
+                 InputError);
 }
 
 TEST(Checkpoint, TensorsThatDoNotFitTheBackboneAreNamed) {

@@ -153,13 +153,16 @@ TEST(DisPu, DuplicatesAreCopyMajorAndDifferOnlyByTheirGridCode) {
     at::NoGradGuard no_grad;
     at::Tensor coarse = model.forward(x, params, NormStatistics::kRunning).coarse;
     at::Tensor copies = coarse.view({2, 4, 16, 3});  // row s·N + i
-    EXPECT_GT((copies.select(1, 1) - copies.select(1, 0)).abs().max().item<double>(), 1e-6);
-    // Without the grid's columns in duplicate-up, the r copies of a point coincide.
+    EXPECT_GT((copies.select(1, 1) - copies.select(1, 0)).abs().max().item<double>(), 1e-3);
+    // Without the grid's columns in duplicate-up, the r copies of a point coincide: up to
+    // rounding, as the copies are different rows of the same products, which some OpenBLAS
+    // kernels (Haswell, Zen) round by row position (3.7e-8 measured; about 30 ulp allowed).
     at::Tensor w = params.at("up.conv1.weight").clone();
     w.narrow(1, w.size(1) - 2, 2).zero_();
     params["up.conv1.weight"] = w;
     copies = model.forward(x, params, NormStatistics::kRunning).coarse.view({2, 4, 16, 3});
-    for (int64_t s = 1; s < 4; ++s) EXPECT_TRUE(copies.select(1, s).equal(copies.select(1, 0)));
+    for (int64_t s = 1; s < 4; ++s)
+        EXPECT_TRUE(at::allclose(copies.select(1, s), copies.select(1, 0), /*rtol=*/0, 1e-6));
 }
 
 TEST(DisPu, CoarseResidualAddsEachInputPointToItsCopies) {

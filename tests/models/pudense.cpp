@@ -111,8 +111,17 @@ TEST(PuDense, EachPatchUpsamplesTheSameAloneAsInABatch) {
     at::Tensor x = test::sheet(3, 40, 5);
     auto model = tiny_model(4);
     at::Tensor together = model->upsample(x);
-    for (int64_t b = 0; b < 3; ++b)
-        EXPECT_TRUE(at::equal(model->upsample(x.slice(0, b, b + 1))[0], together[b])) << b;
+    // The same voxels: a patch's sites go through the products with others' (a different row
+    // count), so logits may differ in the last bit (1-2 ulp measured) and swap two voxels at
+    // the top-k cut; at most 1 % of the voxels may differ by such swaps.
+    for (int64_t b = 0; b < 3; ++b) {
+        at::Tensor alone = model->upsample(x.slice(0, b, b + 1))[0];
+        ASSERT_EQ(alone.sizes(), together[b].sizes());
+        const int64_t n = alone.size(0);
+        const int64_t distinct =
+            std::get<0>(at::unique_dim(at::cat({alone, together[b]}), 0)).size(0);
+        EXPECT_LE(distinct - n, n / 100) << "patch " << b << ": " << distinct - n << " of " << n;
+    }
     EXPECT_EQ(model->inference_batch_patches(), 2);
 }
 

@@ -43,9 +43,17 @@ TEST(KnnGraph, MatchesSortedBruteForceAndExcludesSelf) {
                             d += std::pow(acc[e][i][ch] - acc[e][j][ch], 2);
                         all.push_back({d, j});
                     }
+                    std::vector<double> distance(n, -1);
+                    for (const auto& [d, j] : all) distance[j] = d;
                     std::sort(all.begin(), all.end());
-                    for (int64_t j = 0; j < k; ++j)
-                        ASSERT_EQ(idx[e][i][j].item<int64_t>(), all[j].second) << e << " " << i;
+                    // Ranked by float32 scores from a BLAS product: a neighbour whose exact
+                    // distance ties the oracle's within float rounding may take its rank.
+                    for (int64_t j = 0; j < k; ++j) {
+                        const int64_t got = idx[e][i][j].item<int64_t>();
+                        ASSERT_GE(distance[got], 0) << e << " " << i;  // never itself
+                        ASSERT_NEAR(distance[got], all[j].first, 1e-5 * (1 + all[j].first))
+                            << e << " " << i << " rank " << j;
+                    }
                 }
             }
         }

@@ -40,6 +40,8 @@ static std::string shell_quote(const std::string& s) {
     return quoted + "'";
 }
 
+std::string cli_path() { return PUMETA_CLI_PATH; }
+
 CommandResult run_cli(const std::vector<std::string>& args) {
     return run_command(PUMETA_CLI_PATH, args);
 }

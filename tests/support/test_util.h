@@ -3,6 +3,7 @@
 #pragma once
 
 #include <ATen/core/Tensor.h>
+#include <gtest/gtest.h>
 
 #include <cstdint>
 #include <filesystem>
@@ -10,7 +11,30 @@
 #include <string>
 #include <vector>
 
+#include "pumeta/core/error.h"
+
 namespace pumeta::test {
+
+/// Success when `action` throws InputError whose one-line message contains every fragment.
+template <typename Action>
+::testing::AssertionResult throws_input_error(Action&& action,
+                                              const std::vector<std::string>& fragments) {
+    try {
+        action();
+    } catch (const InputError& error) {
+        const std::string message = error.what();
+        if (message.find('\n') != std::string::npos)
+            return ::testing::AssertionFailure() << "message spans lines: " << message;
+        for (const std::string& fragment : fragments)
+            if (message.find(fragment) == std::string::npos)
+                return ::testing::AssertionFailure()
+                       << "message '" << message << "' lacks '" << fragment << "'";
+        return ::testing::AssertionSuccess() << message;
+    } catch (const std::exception& error) {
+        return ::testing::AssertionFailure() << "threw a non-InputError: " << error.what();
+    }
+    return ::testing::AssertionFailure() << "did not throw";
+}
 
 /// A fresh directory under the system temp dir, removed with its contents on destruction.
 class TempDir {
@@ -35,6 +59,9 @@ struct CommandResult {
 
 /// Runs `program` with `args` (quoted for the shell here), capturing stdout and stderr.
 CommandResult run_command(const std::string& program, const std::vector<std::string>& args);
+
+/// The path of the built `pumeta` binary.
+std::string cli_path();
 
 /// Runs the built `pumeta` binary with `args`.
 CommandResult run_cli(const std::vector<std::string>& args);

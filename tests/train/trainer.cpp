@@ -18,6 +18,7 @@
 #include "pumeta/geometry/sampling.h"
 #include "pumeta/models/backbone.h"
 #include "pumeta/models/checkpoint.h"
+#include "pumeta/train/training_state.h"
 #include "support/test_util.h"
 
 namespace pumeta {
@@ -100,7 +101,7 @@ TEST(Train, ACaughtSignalCheckpointsAndStopsAfterTheCurrentStep) {
     std::signal(SIGTERM, SIG_DFL);
     EXPECT_EQ(stopped_at, 1);
     EXPECT_TRUE(fs::exists(config.run_dir + "/state.ckpt"));
-    EXPECT_EQ(train(config, /*resume=*/true).steps, 30);
+    EXPECT_EQ(train(config, /*resume=*/true).steps, 30);  // the same config: no change to allow
 }
 
 TEST(Train, InitFromCopiesEveryTensorWhoseNameAndShapeMatch) {
@@ -177,7 +178,68 @@ TEST(Train, CiPresetTrainsThePaperWidthModelInSecondsAndResumes) {
     LoadedCheckpoint trained = load_checkpoint(dir.file("ci/model.pt"));
     EXPECT_EQ(count_parameters(trained.backbone->parameters()), 75971);  // paper width
     config.steps = 30;
-    EXPECT_EQ(train(config, /*resume=*/true).steps, 30);
+    EXPECT_EQ(train(config, /*resume=*/true, 0, {"steps"}).steps, 30);
+}
+
+TEST(Train, ResumeAfterAKillLogsEveryStepOnce) {
+    test::TempDir dir;
+    TrainConfig config = tiny_config(dir, 4, "run");
+    config.steps = 6;
+    config.checkpoint_every = 4;
+    train(config, /*resume=*/false);
+    // As if killed after step 6 with the last checkpoint at step 4: the state of step 4 and a
+    // log that already holds steps 5 and 6 (and a line cut short by the kill).
+    const std::string log = dir.file("run/log.jsonl");
+    {
+        config.steps = 4;
+        test::TempDir other;
+        TrainConfig four = config;
+        four.run_dir = other.file("run");
+        train(four, /*resume=*/false);
+        fs::copy_file(four.run_dir + "/state.ckpt", config.run_dir + "/state.ckpt",
+                      fs::copy_options::overwrite_existing);
+    }
+    std::ofstream(log, std::ios::app) << "{\"step\": 7, \"lo";
+    config.steps = 6;
+    train(config, /*resume=*/true, 0, {"steps"});
+    std::vector<int64_t> steps;
+    for (const nlohmann::json& line : loss_lines(log)) steps.push_back(line["step"]);
+    EXPECT_EQ(steps, (std::vector<int64_t>{1, 2, 3, 4, 5, 6}));
+}
+
+TEST(Train, ResumeRefusesAChangedConfigUnlessTheFieldIsAllowed) {
+    test::TempDir dir;
+    TrainConfig config = tiny_config(dir, 4, "run");
+    config.steps = 2;
+    train(config, /*resume=*/false);
+    TrainConfig changed = config;
+    changed.steps = 4;
+    changed.lr = config.lr * 2;
+    EXPECT_TRUE(test::throws_input_error([&] { train(changed, /*resume=*/true); },
+                                         {config.run_dir, "--resume with a changed config",
+                                          "steps (2 -> 4)", "lr (", "--allow-change"}));
+    EXPECT_TRUE(
+        test::throws_input_error([&] { train(changed, /*resume=*/true, 0, {"steps"}); }, {"lr ("}));
+    EXPECT_EQ(train(changed, /*resume=*/true, 0, {"steps", "lr"}).steps, 4);
+    // The run directory and the process layout may differ between sessions.
+    TrainConfig moved = changed;
+    moved.steps = 5;
+    fs::rename(config.run_dir, dir.file("moved"));
+    moved.run_dir = dir.file("moved");
+    EXPECT_EQ(train(moved, /*resume=*/true, 0, {"steps"}).steps, 5);
+}
+
+TEST(Train, TwoTrainersCannotWriteOneRunDirectory) {
+    test::TempDir dir;
+    TrainConfig config = tiny_config(dir, 4, "run");
+    config.steps = 1;
+    fs::create_directories(config.run_dir);
+    {
+        RunLock held(config.run_dir);
+        EXPECT_TRUE(test::throws_input_error([&] { train(config, /*resume=*/false); },
+                                             {config.run_dir, "another trainer", "pid"}));
+    }
+    EXPECT_EQ(train(config, /*resume=*/false).steps, 1);
 }
 
 TEST(Train, ConfigTypeErrorsAreInputErrorsNamingTheField) {

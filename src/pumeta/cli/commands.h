@@ -26,6 +26,19 @@ void add_report_command(CLI::App& app);
 void add_render_command(CLI::App& app);
 void add_contact_sheet_command(CLI::App& app);
 
+/// The largest --ratio any command accepts.
+inline constexpr int64_t kMaxRatio = 256;
+
+/// Checks of numeric option values, each failing with one line that names the accepted range.
+/// A number in [low, high] (NaN and infinities are refused).
+CLI::Validator number_in(double low, double high);
+/// A finite number greater than `low`.
+CLI::Validator number_above(double low);
+/// A whole number in [low, high].
+CLI::Validator integer_in(int64_t low, int64_t high);
+/// A whole number >= 0 that fits 64 bits (seeds).
+CLI::Validator seed_value();
+
 /// Options shared by commands that read geometry files: --format, --drop-invalid.
 void add_read_options(CLI::App& command, ReadOptions& options);
 

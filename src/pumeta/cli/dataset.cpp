@@ -19,8 +19,8 @@ void add_gen_shapes_command(CLI::App& app) {
     };
     auto args = std::make_shared<Args>();
     CLI::App* command = app.add_subcommand("gen-shapes", "write procedural CAD-like meshes");
-    command->add_option("--count", args->count, "number of shapes")->check(CLI::PositiveNumber);
-    command->add_option("--seed", args->seed, "seed of the first shape");
+    command->add_option("--count", args->count, "number of shapes")->check(integer_in(1, 1000000));
+    command->add_option("--seed", args->seed, "seed of the first shape")->check(seed_value());
     command->add_option("-o,--output", args->output, "output directory (PLY meshes)")->required();
     command->callback([args] {
         std::filesystem::create_directories(args->output);

@@ -23,7 +23,7 @@ int main(int argc, char** argv) {
     int threads = 0;
     std::string log_level = "info";
     app.add_option("--threads", threads, "CPU threads (default: all cores)")
-        ->check(CLI::NonNegativeNumber);
+        ->check(pumeta::cli::integer_in(1, 1024));
     app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off")
         ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "off"}));
     app.parse_complete_callback([&] {
@@ -58,7 +58,8 @@ int main(int argc, char** argv) {
     } catch (const CLI::CallForAllHelp& e) {
         return app.exit(e);
     } catch (const CLI::ParseError& e) {
-        app.exit(e);
+        // One line, like every other error (CLI11 would add a "Run with --help" line).
+        std::fprintf(stderr, "pumeta: error: %s\n", e.what());
         return 2;
     } catch (const pumeta::InputError& e) {
         std::fprintf(stderr, "pumeta: error: %s\n", e.what());

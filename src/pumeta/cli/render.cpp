@@ -23,11 +23,15 @@ void add_render_command(CLI::App& app) {
     command->add_option("clouds", args->inputs, "one or more clouds (a grid when several)")
         ->required();
     command->add_option("-o,--output", args->output, "PNG file")->required();
-    command->add_option("--size", args->size, "pixels per image side")->check(CLI::Range(16, 8192));
-    command->add_option("--elevation", args->elevation, "view elevation in degrees");
-    command->add_option("--azimuth", args->azimuth, "view azimuth in degrees");
-    command->add_option("--point-radius", args->point_radius, "splat radius in pixels (0: auto)");
-    command->add_option("--columns", args->columns, "grid columns (0: all in one row)");
+    command->add_option("--size", args->size, "pixels per image side")->check(integer_in(16, 8192));
+    command->add_option("--elevation", args->elevation, "view elevation in degrees")
+        ->check(number_in(-90, 90));
+    command->add_option("--azimuth", args->azimuth, "view azimuth in degrees")
+        ->check(number_in(-360, 360));
+    command->add_option("--point-radius", args->point_radius, "splat radius in pixels (0: auto)")
+        ->check(number_in(0, 256));
+    command->add_option("--columns", args->columns, "grid columns (0: all in one row)")
+        ->check(integer_in(0, 1024));
     command->add_option("--error-to", args->error_to,
                         "colour points by distance to this reference cloud");
     add_read_options(*command, args->read);
@@ -100,8 +104,10 @@ void add_contact_sheet_command(CLI::App& app) {
         "contact-sheet", "pictures of a dataset: 16 training patches and 8 test cases");
     command->add_option("dataset", args->dataset, "a make-dataset directory")->required();
     command->add_option("-o,--output", args->output, "output directory for the PNGs")->required();
-    command->add_option("--ratio", args->ratio, "which ratio's data to show");
-    command->add_option("--seed", args->seed, "which patches and cases are picked");
+    command->add_option("--ratio", args->ratio, "which ratio's data to show")
+        ->check(integer_in(2, kMaxRatio));
+    command->add_option("--seed", args->seed, "which patches and cases are picked")
+        ->check(seed_value());
     command->callback([args] {
         namespace fs = std::filesystem;
         fs::create_directories(args->output);

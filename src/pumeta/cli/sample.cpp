@@ -16,10 +16,10 @@ void add_sample_command(CLI::App& app) {
     command->add_option("mesh", args->input, "input mesh")->required();
     command->add_option("-n,--count", args->count, "number of points")
         ->required()
-        ->check(CLI::PositiveNumber);
+        ->check(integer_in(1, int64_t{1} << 31));
     command->add_option("--method", args->method, "poisson (blue noise) or uniform (by area)")
         ->check(CLI::IsMember({"poisson", "uniform"}));
-    command->add_option("--seed", args->seed, "random seed");
+    command->add_option("--seed", args->seed, "random seed")->check(seed_value());
     command->add_option("-o,--output", args->output, "output cloud")->required();
     add_read_options(*command, args->read);
     command->callback([args] {

@@ -36,11 +36,15 @@ void add_model_options(CLI::App& command, ModelArgs& args) {
                        "checkpoint (default: the shipped PU-GCN for --ratio, " +
                            default_model_path() + " when no ratio is given)");
     command.add_option("--ratio", args.ratio, "upsampling ratio (default: the model's)")
-        ->check(CLI::NonNegativeNumber);
-    command.add_option("--seed", args.seed, "seed of the test-time downsampler");
-    command.add_option("--tta-steps", args.tta_steps,
-                       "test-time adaptation steps N (default: a meta-trained model's N, else 0)");
-    command.add_option("--tta-lr", args.tta_lr, "inner step size (default: the model's)");
+        ->check(integer_in(2, kMaxRatio));
+    command.add_option("--seed", args.seed, "seed of the test-time downsampler")
+        ->check(seed_value());
+    command
+        .add_option("--tta-steps", args.tta_steps,
+                    "test-time adaptation steps N (default: a meta-trained model's N, else 0)")
+        ->check(integer_in(0, 100000));
+    command.add_option("--tta-lr", args.tta_lr, "inner step size (default: the model's)")
+        ->check(number_above(0));
     command
         .add_option("--tta-unit", args.tta_unit,
                     "object: one adaptation on the input's patches, each downsampled; patch: "
@@ -62,7 +66,7 @@ void add_model_options(CLI::App& command, ModelArgs& args) {
         .add_option("--batch-patches", args.batch_patches,
                     "patches per forward pass (default: the backbone's fastest, 64 for PU-GCN "
                     "and Dis-PU, 2 for PU-Dense)")
-        ->check(CLI::PositiveNumber);
+        ->check(integer_in(1, 65536));
     command.add_option("--device", args.device, "cpu or cuda");
 }
 
@@ -173,20 +177,21 @@ void add_eval_command(CLI::App& app, const std::string& command_line) {
     command
         ->add_option("--zero-shot-steps", args->eval.zero_shot.steps,
                      "method zero-shot: Adam steps per input")
-        ->check(CLI::PositiveNumber);
+        ->check(integer_in(1, 1000000));
     command
         ->add_option("--zero-shot-batch", args->eval.zero_shot.batch_patches,
                      "method zero-shot: patches per step")
-        ->check(CLI::PositiveNumber);
+        ->check(integer_in(1, 65536));
     command
         ->add_option("--zero-shot-lr", args->eval.zero_shot.lr,
                      "method zero-shot: Adam learning rate")
-        ->check(CLI::PositiveNumber);
+        ->check(number_above(0));
     command->add_option("--command", args->eval.external_command,
                         "method external: shell command with {input}, {output} (XYZ files) and "
                         "{ratio}, e.g. \"build/pumeta-ear {input} {output} --ratio {ratio}\"");
     command->add_option("--noise", args->eval.noise, "noisy input variant (rel1, abs0.01, ...)");
-    command->add_option("--max-cases", args->eval.max_cases, "only the first N cases");
+    command->add_option("--max-cases", args->eval.max_cases, "only the first N cases")
+        ->check(integer_in(1, std::numeric_limits<int32_t>::max()));
     command->add_flag("--save-predictions", args->eval.save_predictions,
                       "write predictions to OUT/pred/");
     add_model_options(*command, args->model);
@@ -210,6 +215,7 @@ void add_meta_train_command(CLI::App& app) {
         bool first_order = false;
         double max_minutes = 0;
         DistributedArgs distributed;
+        std::vector<std::string> allow_changes;
     };
     auto args = std::make_shared<Args>();
     CLI::App* command =
@@ -218,8 +224,13 @@ void add_meta_train_command(CLI::App& app) {
     command->add_option("--set", args->overrides, "override a config field: key=value");
     command->add_flag("--resume", args->resume, "continue the run in run_dir");
     command->add_flag("--first-order", args->first_order, "first-order MAML (FOMAML)");
-    command->add_option("--max-minutes", args->max_minutes,
-                        "checkpoint and stop after this many minutes (0 = no limit)");
+    command
+        ->add_option("--max-minutes", args->max_minutes,
+                     "checkpoint and stop after this many minutes (0 = no limit)")
+        ->check(number_in(0, 1e7));
+    command->add_option("--allow-change", args->allow_changes,
+                        "with --resume: a config field (e.g. steps) allowed to differ from the "
+                        "run's; repeatable");
     add_distributed_options(*command, args->distributed);
     command->callback([args] {
         nlohmann::json j = read_json_file(args->config);
@@ -227,8 +238,8 @@ void add_meta_train_command(CLI::App& app) {
         if (args->first_order) j["meta"]["first_order"] = true;
         apply_distributed_args(j, args->distributed);
         catch_interrupts();
-        MetaTrainResult r =
-            meta_train(MetaTrainConfig::from_json(j), args->resume, args->max_minutes * 60.0);
+        MetaTrainResult r = meta_train(MetaTrainConfig::from_json(j), args->resume,
+                                       args->max_minutes * 60.0, args->allow_changes);
         print_json({{"steps", r.steps},
                     {"val_cd_before", r.last.cd_before},
                     {"val_cd_after", r.last.cd_after},

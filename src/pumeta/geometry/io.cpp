@@ -26,19 +26,20 @@ struct Format {
     Reader read;
     Writer write;  // nullptr for read-only formats
     bool holds_faces;
-    bool is_text;  // entirely text, so a UTF-16 byte order mark cannot be binary data
+    bool is_text;      // entirely text, so a UTF-16 byte order mark cannot be binary data
+    bool starts_text;  // begins with a text line, so a UTF-8 byte order mark is not data
 };
 
 // The one place that knows which formats exist.
 const std::vector<Format>& format_table() {
     static const std::vector<Format> table = {
-        {"ply", {"ply"}, io::read_ply, io::write_ply, true, false},
-        {"xyz", {"xyz", "txt", "pts"}, io::read_xyz, io::write_xyz, false, true},
-        {"off", {"off"}, io::read_off, io::write_off, true, true},
-        {"obj", {"obj"}, io::read_obj, io::write_obj, true, true},
-        {"stl", {"stl"}, io::read_stl, nullptr, true, false},
-        {"pcd", {"pcd"}, io::read_pcd, io::write_pcd, false, false},
-        {"las", {"las"}, io::read_las, nullptr, false, false},
+        {"ply", {"ply"}, io::read_ply, io::write_ply, true, false, true},
+        {"xyz", {"xyz", "txt", "pts"}, io::read_xyz, io::write_xyz, false, true, true},
+        {"off", {"off"}, io::read_off, io::write_off, true, true, true},
+        {"obj", {"obj"}, io::read_obj, io::write_obj, true, true, true},
+        {"stl", {"stl"}, io::read_stl, nullptr, true, false, false},
+        {"pcd", {"pcd"}, io::read_pcd, io::write_pcd, false, false, true},
+        {"las", {"las"}, io::read_las, nullptr, false, false, false},
     };
     return table;
 }
@@ -107,19 +108,30 @@ void handle_non_finite(Geometry& geometry, const std::string& path, bool drop) {
     if (cloud.size() == 0) throw_input_error(path, "no point has finite coordinates");
 }
 
-Geometry read_checked(const std::string& path, const ReadOptions& options, bool keep_faces) {
+Geometry parse_checked(const std::string& path, std::string_view data, const ReadOptions& options,
+                       bool keep_faces) {
     const Format& format = resolve_format(path, options.format);
-    const std::string data = io::read_whole_file(path);
+    if (data.empty()) throw_input_error(path, "file is empty");
     const bool utf16_bom = data.size() >= 2 && ((data[0] == '\xFE' && data[1] == '\xFF') ||
                                                 (data[0] == '\xFF' && data[1] == '\xFE'));
     if (utf16_bom && format.is_text)
         throw_input_error(path, "UTF-16 text is not supported; save the file as UTF-8 or ASCII");
-    Geometry geometry = format.read(path, data);
+    // A UTF-8 byte order mark (Windows editors write one) is not part of the text. Binary STL
+    // and LAS are excluded: their first bytes are data.
+    std::string_view text = data;
+    if (format.starts_text && text.substr(0, 3) == "\xEF\xBB\xBF") text.remove_prefix(3);
+    if (text.empty()) throw_input_error(path, "the file holds only a byte order mark");
+    Geometry geometry = format.read(path, text);
     if (!keep_faces || (geometry.faces.defined() && geometry.faces.size(0) == 0))
         geometry.faces = at::Tensor();
     if (geometry.cloud.size() == 0) throw_input_error(path, "the file contains no points");
     handle_non_finite(geometry, path, options.drop_invalid);
     return geometry;
+}
+
+Geometry read_checked(const std::string& path, const ReadOptions& options, bool keep_faces) {
+    resolve_format(path, options.format);  // an unknown format fails before any read
+    return parse_checked(path, io::read_whole_file(path), options, keep_faces);
 }
 
 void check_attribute(const at::Tensor& tensor, int64_t n, at::ScalarType type, const char* what,
@@ -162,6 +174,11 @@ void write_checked(const std::string& path, const Geometry& geometry, const Writ
 
 Geometry read_geometry(const std::string& path, const ReadOptions& options) {
     return read_checked(path, options, true);
+}
+
+Geometry parse_geometry(const std::string& name, std::string_view bytes,
+                        const ReadOptions& options) {
+    return parse_checked(name, bytes, options, true);
 }
 
 PointCloud read_point_cloud(const std::string& path, const ReadOptions& options) {

@@ -15,6 +15,7 @@
 #pragma once
 
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "pumeta/geometry/point_cloud.h"
@@ -38,6 +39,11 @@ struct WriteOptions {
 
 /// Reads any supported file. Meshes keep their faces; point formats leave faces undefined.
 Geometry read_geometry(const std::string& path, const ReadOptions& options = {});
+
+/// read_geometry on a file's bytes already in memory; `name` gives the format by its
+/// extension (unless options.format is set) and names the input in messages.
+Geometry parse_geometry(const std::string& name, std::string_view bytes,
+                        const ReadOptions& options = {});
 
 /// Reads the vertices of any supported file (a mesh's vertices count as points).
 PointCloud read_point_cloud(const std::string& path, const ReadOptions& options = {});

@@ -32,10 +32,21 @@ at::Tensor Normalization::invert(const at::Tensor& points) const {
 
 Normalization unit_sphere_normalization(const at::Tensor& points, CenterMode mode) {
     check_points(points, "unit_sphere_normalization", 1);
-    at::Tensor p = points.to(at::kDouble);
-    at::Tensor center = mode == CenterMode::kCentroid
-                            ? p.mean(0)
-                            : (std::get<0>(p.min(0)) + std::get<0>(p.max(0))) * 0.5;
+    at::Tensor p = points.to(at::kDouble).contiguous();
+    at::Tensor center;
+    if (mode == CenterMode::kCentroid) {
+        // Summed in order: a parallel reduction's partial sums would depend on the thread
+        // count, and the centre moves every later result by its rounding.
+        const at::Tensor cpu = p.to(at::kCPU);
+        const double* xyz = cpu.data_ptr<double>();
+        double sum[3] = {0, 0, 0};
+        for (int64_t i = 0; i < p.size(0); ++i)
+            for (int axis = 0; axis < 3; ++axis) sum[axis] += xyz[3 * i + axis];
+        const double n = static_cast<double>(p.size(0));
+        center = at::tensor({sum[0] / n, sum[1] / n, sum[2] / n}, at::kDouble).to(p.device());
+    } else {
+        center = (std::get<0>(p.min(0)) + std::get<0>(p.max(0))) * 0.5;
+    }
     Normalization normalization;
     normalization.center = center.to(at::kFloat);
     // The radius about the float32 centre that apply() will subtract, not the exact one.

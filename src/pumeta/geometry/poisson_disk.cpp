@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "pumeta/core/error.h"
+#include "pumeta/core/tensor_checks.h"
 #include "pumeta/geometry/sampling.h"
 
 namespace pumeta {
@@ -189,19 +190,17 @@ double surface_area(const TriangleMesh& mesh) {
 
 }  // namespace
 
-PointCloud sample_poisson_disk(const TriangleMesh& mesh, int64_t n, uint64_t seed,
-                               const PoissonDiskOptions& options) {
-    if (options.init_factor < 1)
-        throw_input_error("sample_poisson_disk", "init_factor must be >= 1, found {}",
-                          options.init_factor);
-    if (n < 0) throw_input_error("sample_poisson_disk", "negative sample count {}", n);
-    PointCloud candidates = sample_uniform(mesh, n * options.init_factor, seed);
-    const int64_t count = candidates.size();
-    if (count == n) return candidates;
-
-    const double r_max = 2.0 * std::sqrt(surface_area(mesh) / n / (2.0 * std::sqrt(3.0)));
+at::Tensor eliminate_samples(const at::Tensor& points, int64_t n, double r_max) {
+    check_points(points, "eliminate_samples");
+    const int64_t count = points.size(0);
+    if (n < 0 || n > count)
+        throw_input_error("eliminate_samples", "cannot keep {} of {} points", n, count);
+    if (!(r_max > 0) || !std::isfinite(r_max))
+        throw_input_error("eliminate_samples", "radius must be positive, found {}", r_max);
+    if (n == count) return at::arange(count, at::kLong);
+    const at::Tensor cpu = points.to(at::kCPU).contiguous();
     const double radius = 2.0 * r_max;
-    const CellGrid grid(candidates.points.data_ptr<float>(), count, radius);
+    const CellGrid grid(cpu.data_ptr<float>(), count, radius);
     const double inverse_radius = 1.0 / radius;
     auto weight_of = [inverse_radius](float sq_distance) {
         const double t = 1.0 - std::sqrt(static_cast<double>(sq_distance)) * inverse_radius;
@@ -234,7 +233,19 @@ PointCloud sample_poisson_disk(const TriangleMesh& mesh, int64_t n, uint64_t see
     for (int64_t slot = 0; slot < count; ++slot)
         if (weight[slot] != EliminationHeap::kRemoved) kept.push_back(grid.sample(slot));
     std::sort(kept.begin(), kept.end());
-    at::Tensor index = at::tensor(kept, at::kLong);
+    return at::tensor(kept, at::kLong);
+}
+
+PointCloud sample_poisson_disk(const TriangleMesh& mesh, int64_t n, uint64_t seed,
+                               const PoissonDiskOptions& options) {
+    if (options.init_factor < 1)
+        throw_input_error("sample_poisson_disk", "init_factor must be >= 1, found {}",
+                          options.init_factor);
+    if (n < 0) throw_input_error("sample_poisson_disk", "negative sample count {}", n);
+    PointCloud candidates = sample_uniform(mesh, n * options.init_factor, seed);
+    if (candidates.size() == n) return candidates;
+    const double r_max = 2.0 * std::sqrt(surface_area(mesh) / n / (2.0 * std::sqrt(3.0)));
+    const at::Tensor index = eliminate_samples(candidates.points, n, r_max);
     return {
         candidates.points.index_select(0, index), candidates.normals.index_select(0, index), {}};
 }

@@ -43,6 +43,13 @@ at::Tensor nonuniform_subset(int64_t n, int64_t m, uint64_t seed);
 /// barycentrics), with the face normals. Degenerate (zero-area) faces are never chosen.
 PointCloud sample_uniform(const TriangleMesh& mesh, int64_t n, uint64_t seed);
 
+/// Indices (ascending) of the n of float32 [M,3] `points` that weighted sample elimination
+/// keeps (Yuksel 2015): repeatedly drops the point with the largest weight
+/// sum(1 - d / 2 r_max)^8 over neighbours closer than 2 r_max (ties: larger index first).
+/// r_max is the Poisson-disk radius of n points on the sampled surface, 2 sqrt(A / n / (2 sqrt 3))
+/// for area A. O(M log M) time and O(M) memory.
+at::Tensor eliminate_samples(const at::Tensor& points, int64_t n, double r_max);
+
 /// Options of Poisson-disk sampling by weighted sample elimination (Yuksel 2015), the method
 /// of Open3D's SamplePointsPoissonDisk.
 struct PoissonDiskOptions {

@@ -11,6 +11,7 @@
 #include "pumeta/core/error.h"
 #include "pumeta/core/progress.h"
 #include "pumeta/core/tensor_checks.h"
+#include "pumeta/core/threads.h"
 #include "pumeta/geometry/knn.h"
 #include "pumeta/geometry/normalize.h"
 #include "pumeta/geometry/patches.h"
@@ -125,7 +126,10 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
     MetaOptions meta = options.meta;
     meta.inner_steps = options.tta_steps;
     auto tta_start = Clock::now();
+    // Adaptation runs on one thread (core/threads.h): its gradients then have the same bits
+    // whatever the thread count.
     auto adapt_pairs = [&](const at::Tensor& input, const at::Tensor& target) {
+        ThreadCountGuard one_thread(1);
         std::vector<double> losses;
         ParamMap adapted = adapt(model, model.parameters(), input, target, meta, options.step_sizes,
                                  /*create_graph=*/false, &losses);
@@ -174,12 +178,16 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
     }
     result.tta_seconds += seconds_since(tta_start);
 
+    // The network runs on one thread (core/threads.h), so that its outputs have the same bits
+    // whatever the thread count; the geometry around it (patches, kNN, FPS) stays parallel,
+    // as its results do not depend on the thread count.
     std::vector<at::Tensor> outputs;
     double before_sum = 0, after_sum = 0;
     std::optional<ProgressBar> progress;
     if (options.show_progress) progress.emplace(num_patches, fmt::format("upsample x{}", r));
     const int64_t batch =
         options.batch_patches > 0 ? options.batch_patches : model.inference_batch_patches();
+    std::optional<ThreadCountGuard> one_thread(std::in_place, 1);
     for (int64_t start = 0; start < num_patches; start += batch) {
         if (progress) progress->update(start, fmt::format("{} patches", num_patches));
         int64_t end = std::min(num_patches, start + batch);
@@ -200,6 +208,7 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
         at::NoGradGuard no_grad;
         outputs.push_back(model.upsample(chunk, object_params));
     }
+    one_thread.reset();
     if (progress) progress->finish();
     if (options.tta_steps > 0 && options.tta_unit == "patch") {
         result.loss_before = before_sum / num_patches;
@@ -255,18 +264,32 @@ UpsampleResult upsample_cloud(const Backbone& model, const at::Tensor& points,
     return result;
 }
 
-at::Tensor midpoint_upsample(const at::Tensor& points, int64_t ratio, int64_t k) {
+at::Tensor midpoint_upsample(const at::Tensor& points, int64_t ratio, int64_t k,
+                             double fps_budget) {
     check_points(points, "midpoint input", 2);
     if (k <= 0) k = ratio;
     k = std::min(k, points.size(0) - 1);
     // Neighbour 0 is the point itself.
-    at::Tensor neighbours = knn(points, points, k + 1).indices.slice(1, 1);
+    const KnnResult nearest = knn(points, points, k + 1);
+    at::Tensor neighbours = nearest.indices.slice(1, 1);
     at::Tensor mids = (points.unsqueeze(1) +
                        points.index_select(0, neighbours.flatten()).view({points.size(0), k, 3})) *
                       0.5f;
     at::Tensor candidates = at::cat({points, mids.reshape({-1, 3})}).contiguous();
-    int64_t target = ratio * points.size(0);
-    return select_exactly(candidates, target, std::numeric_limits<int64_t>::max(), 0);
+    const int64_t target = ratio * points.size(0);
+    if (candidates.size(0) <= target) return select_exactly(candidates, target, 0, 0);
+    if (fps_affordable(candidates.size(0), target, fps_budget))
+        return candidates.index_select(0, farthest_point_sampling(candidates, target, 0));
+    // The area the input covers, each point owning the hexagon of its nearest-neighbour
+    // spacing d (area sqrt(3)/2 d^2), and the Poisson-disk radius of `target` points on it.
+    const double spacing = nearest.sq_distances.select(1, 1).sqrt().mean().item<double>();
+    const double area =
+        static_cast<double>(points.size(0)) * std::sqrt(3.0) / 2 * spacing * spacing;
+    const double r_max =
+        2.0 * std::sqrt(area / static_cast<double>(target) / (2.0 * std::sqrt(3.0)));
+    if (!(r_max > 0))  // every point duplicated: nothing to space out
+        return select_exactly(candidates, target, 0, 0);
+    return candidates.index_select(0, eliminate_samples(candidates, target, r_max));
 }
 
 }  // namespace pumeta

@@ -74,8 +74,12 @@ struct UpsampleResult {
 UpsampleResult upsample_cloud(const Backbone& model, const at::Tensor& points,
                               const UpsampleOptions& options);
 
-/// The non-learned baseline: each point plus the midpoints to its k nearest neighbours, then
-/// farthest point sampling to exactly ratio·N.
-at::Tensor midpoint_upsample(const at::Tensor& points, int64_t ratio, int64_t k = 0);
+/// The non-learned baseline: each point plus the midpoints to its k nearest neighbours (k =
+/// ratio by default), then exactly ratio·N of them: farthest point sampling while its cost
+/// (candidates × output points) is within `fps_budget` (the network's, so every test set
+/// keeps FPS), else weighted sample elimination with the Poisson-disk radius of ratio·N points
+/// on the area the input covers, which is O(M log M).
+at::Tensor midpoint_upsample(const at::Tensor& points, int64_t ratio, int64_t k = 0,
+                             double fps_budget = UpsampleOptions().fps_budget);
 
 }  // namespace pumeta

@@ -134,21 +134,19 @@ void all_reduce_step(ProcessGroup& group, MetaStepResult& r, bool& stop) {
     stop = unpack_step_sum(group.sum(pack_step_sum(r, stop)), r);
 }
 
-void append_log(const fs::path& file, const nlohmann::json& record) {
-    std::ofstream(file, std::ios::app) << record.dump() << "\n";
-}
-
 }  // namespace
 
-MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume, double stop_after_seconds) {
+MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume, double stop_after_seconds,
+                           const std::vector<std::string>& allow_changes) {
     check_blas_speed();
     ProcessGroup group(config.distributed);
     // Rank 0 alone writes the run directory; the others only read it when resuming.
     bool writes = group.is_main();
     fs::path state_file = fs::path(config.run_dir) / "state.ckpt";
     fs::path log_file = fs::path(config.run_dir) / "log.jsonl";
-    TrainingState opened = open_run(config.run_dir, resume, writes, "meta-train",
-                                    [&] { return load_checkpoint(config.init).backbone; });
+    TrainingState opened =
+        open_run(config.run_dir, {resume, allow_changes}, writes, "meta-train", config.to_json(),
+                 [&] { return load_checkpoint(config.init).backbone; });
     std::unique_ptr<Backbone> model = std::move(opened.model);
     nlohmann::json info = opened.info;
     ParamMap optimizer_state = std::move(opened.optimizer);
@@ -227,7 +225,8 @@ MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume, double st
                                      {"adam", outer.state_info()},
                                      {"best_cd_after", best},
                                      {"loader_position", loader.position()},
-                                     {"step_sizes", step_sizes_to_json(step_sizes)}};
+                                     {"step_sizes", step_sizes_to_json(step_sizes)},
+                                     {kRunConfigKey, comparable_config(config.to_json())}};
         if (step_size_optimizer) {
             for (auto& [name, t] : step_size_optimizer->state()) tensors["alpha:" + name] = t;
             state_info["adam_alpha"] = step_size_optimizer->state_info();
@@ -243,14 +242,14 @@ MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume, double st
         if (!writes) return;
         if (improved)
             save_checkpoint((fs::path(config.run_dir) / "best.pt").string(), *model, model_extra());
-        append_log(log_file, {{"step", step},
-                              {"val_cd_before", last.cd_before},
-                              {"val_cd_after", last.cd_after},
-                              {"val_inner_before", last.inner_loss_before},
-                              {"val_inner_after", last.inner_loss_after},
-                              {"val_alignment", last.alignment},
-                              {"val_alignment_other", last.alignment_other},
-                              {"best", improved}});
+        append_log(log_file.string(), {{"step", step},
+                                       {"val_cd_before", last.cd_before},
+                                       {"val_cd_after", last.cd_after},
+                                       {"val_inner_before", last.inner_loss_before},
+                                       {"val_inner_after", last.inner_loss_after},
+                                       {"val_alignment", last.alignment},
+                                       {"val_alignment_other", last.alignment_other},
+                                       {"best", improved}});
         spdlog::info(
             "meta-train: step {} val CD {:.4e} -> {:.4e} after adaptation (inner "
             "{:.4e} -> {:.4e}, first-step alignment {:+.3f}, with another task's {:+.3f})",
@@ -291,15 +290,15 @@ MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume, double st
             progress->update(step, fmt::format("outer {:.3e} (unadapted {:.3e})", r.outer_loss,
                                                r.outer_loss_before));
         if (writes && step % config.log_every == 0)
-            append_log(log_file, {{"step", step},
-                                  {"outer_loss", r.outer_loss},
-                                  {"outer_loss_before", r.outer_loss_before},
-                                  {"inner_loss_before", r.inner_loss_before},
-                                  {"inner_loss_after", r.inner_loss_after},
-                                  {"dropped_tasks", r.dropped_tasks},
-                                  {"lr", outer.lr()},
-                                  {"seconds", elapsed()},
-                                  {"steps_per_second", (step - first_step) / elapsed()}});
+            append_log(log_file.string(), {{"step", step},
+                                           {"outer_loss", r.outer_loss},
+                                           {"outer_loss_before", r.outer_loss_before},
+                                           {"inner_loss_before", r.inner_loss_before},
+                                           {"inner_loss_after", r.inner_loss_after},
+                                           {"dropped_tasks", r.dropped_tasks},
+                                           {"lr", outer.lr()},
+                                           {"seconds", elapsed()},
+                                           {"steps_per_second", (step - first_step) / elapsed()}});
         if (val && (step % config.val_every == 0 || step == config.steps || stop)) validate();
         if (writes && (step % config.checkpoint_every == 0 || step == config.steps || stop))
             save_state();

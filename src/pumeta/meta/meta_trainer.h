@@ -70,6 +70,7 @@ struct MetaTrainResult {
 /// Meta-trains (or, with resume, continues the run in config.run_dir) until config.steps;
 /// stops early, after writing a checkpoint, as train() does.
 MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume,
-                           double stop_after_seconds = 0);
+                           double stop_after_seconds = 0,
+                           const std::vector<std::string>& allow_changes = {});
 
 }  // namespace pumeta

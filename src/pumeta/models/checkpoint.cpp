@@ -7,13 +7,12 @@
 #include <cerrno>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 #include <vector>
 
 #include "pumeta/core/error.h"
 #include "pumeta/core/sha256.h"
 #include "pumeta/core/tensor_checks.h"
+#include "pumeta/geometry/io/file.h"
 
 namespace pumeta {
 
@@ -129,8 +128,14 @@ struct Container {
     ParamMap tensors;
 };
 
+int64_t stored_elements(const ParamMap& tensors) {
+    int64_t total = 0;
+    for (const auto& [name, tensor] : tensors) total += tensor.numel();
+    return total;
+}
+
 at::Tensor read_tensor(const std::string& path, const std::string& name,
-                       const nlohmann::json& entry, const std::string& payload) {
+                       const nlohmann::json& entry, std::string_view payload) {
     try {
         at::ScalarType type = at::kFloat;
         bool known = false;
@@ -145,11 +150,16 @@ at::Tensor read_tensor(const std::string& path, const std::string& name,
         std::vector<int64_t> shape = entry.at("shape").get<std::vector<int64_t>>();
         size_t offset = entry.at("offset").get<size_t>();
         size_t nbytes = entry.at("nbytes").get<size_t>();
-        at::Tensor tensor = at::empty(shape, at::TensorOptions().dtype(type));
-        if (size_t(tensor.numel() * tensor.element_size()) != nbytes || offset > payload.size() ||
-            nbytes > payload.size() - offset)
+        // The shape's size is checked against the payload before anything is allocated.
+        uint64_t expected = c10::elementSize(type);
+        for (int64_t dim : shape)
+            if (dim < 0 || __builtin_mul_overflow(expected, static_cast<uint64_t>(dim), &expected))
+                throw_input_error(path, "tensor '{}' has an invalid shape {}", name,
+                                  entry.at("shape").dump());
+        if (expected != nbytes || offset > payload.size() || nbytes > payload.size() - offset)
             throw_input_error(path, "tensor '{}' does not fit the payload", name);
-        std::memcpy(tensor.data_ptr(), payload.data() + offset, nbytes);
+        at::Tensor tensor = at::empty(shape, at::TensorOptions().dtype(type));
+        if (nbytes > 0) std::memcpy(tensor.data_ptr(), payload.data() + offset, nbytes);
         return tensor;
     } catch (const nlohmann::json::exception& e) {
         throw_input_error(path, "tensor '{}' has an invalid entry: {}", name, e.what());
@@ -159,13 +169,8 @@ at::Tensor read_tensor(const std::string& path, const std::string& name,
     }
 }
 
-Container load_container(const std::string& path) {
+Container parse_container(const std::string& path, std::string_view bytes) {
     require_little_endian();
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw_input_error(path, "cannot open checkpoint");
-    std::stringstream buffer;
-    buffer << in.rdbuf();
-    const std::string bytes = buffer.str();
     if (bytes.compare(0, kMagicSize, kMagic) != 0)
         throw_input_error(path, "not a pumeta checkpoint (missing \"PUMETA-CKPT\" header)");
     size_t header_end = bytes.find('\n', kMagicSize);
@@ -184,7 +189,7 @@ Container load_container(const std::string& path) {
     if (header["format_version"] != kFormatVersion)
         throw_input_error(path, "unsupported checkpoint format version {} (this build reads {})",
                           header["format_version"].dump(), kFormatVersion);
-    const std::string payload = bytes.substr(header_end + 1);
+    const std::string_view payload = bytes.substr(header_end + 1);
     if (!header.contains("payload_bytes") || !header["payload_bytes"].is_number_unsigned() ||
         !header.contains("sha256") || !header["sha256"].is_string() ||
         !header.contains("tensors") || !header["tensors"].is_object())
@@ -199,6 +204,10 @@ Container load_container(const std::string& path) {
     for (const auto& [name, entry] : header["tensors"].items())
         container.tensors[name] = read_tensor(path, name, entry, payload);
     return container;
+}
+
+Container load_container(const std::string& path) {
+    return parse_container(path, io::read_whole_file(path));
 }
 
 }  // namespace
@@ -223,11 +232,18 @@ void save_checkpoint(const std::string& path, const Backbone& backbone,
 }
 
 LoadedCheckpoint load_checkpoint(const std::string& path) {
-    Container container = load_container(path);
+    return parse_checkpoint(path, io::read_whole_file(path));
+}
+
+LoadedCheckpoint parse_checkpoint(const std::string& path, std::string_view bytes) {
+    Container container = parse_container(path, bytes);
     if (container.header.value("content", "") != "backbone" || !container.header.contains("config"))
         throw_input_error(path, "is not a backbone checkpoint");
     LoadedCheckpoint loaded;
     try {
+        // Generous (twice the file, plus 4 MiB), so that a file lacking a tensor still gets the
+        // message naming it; a forged config asking for GiBs fails here.
+        ParameterBudget budget(2 * stored_elements(container.tensors) + (1 << 20), "config");
         loaded.backbone = make_backbone(container.header["config"]);
     } catch (const InputError& e) {
         throw_input_error(path, "stored config cannot be rebuilt: {}", e.what());

@@ -15,6 +15,7 @@
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <string_view>
 
 #include "pumeta/models/backbone.h"
 #include "pumeta/nn/parameters.h"
@@ -50,5 +51,8 @@ struct LoadedCheckpoint {
 /// InputError "<path>: ..." as load_tensors, and naming the tensor when the stored tensors do
 /// not match the rebuilt backbone's names and shapes.
 LoadedCheckpoint load_checkpoint(const std::string& path);
+
+/// load_checkpoint on a file's bytes already in memory; `path` names it in messages.
+LoadedCheckpoint parse_checkpoint(const std::string& path, std::string_view bytes);
 
 }  // namespace pumeta

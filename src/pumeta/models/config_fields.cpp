@@ -7,8 +7,12 @@ namespace pumeta {
 
 int64_t positive_int_field(const nlohmann::json& value, const std::string& key,
                            const std::string& context) {
-    if (!value.is_number_integer() || value.get<int64_t>() < 1)
-        throw_input_error(context, "'{}' must be a positive integer, found {}", key, value.dump());
+    // No size of any network comes near the upper bound; it keeps products of sizes far from
+    // overflow.
+    constexpr int64_t kMax = 1 << 20;
+    if (!value.is_number_integer() || value.get<int64_t>() < 1 || value.get<int64_t>() > kMax)
+        throw_input_error(context, "'{}' must be an integer from 1 to {}, found {}", key, kMax,
+                          value.dump());
     return value.get<int64_t>();
 }
 

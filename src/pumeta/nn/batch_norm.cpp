@@ -44,6 +44,7 @@ at::Tensor normalize(const at::Tensor& x, const at::Tensor& mean, const at::Tens
 
 void add_batch_norm(ParamMap& params, ParamMap& buffers, const std::string& prefix,
                     int64_t channels) {
+    for (int i = 0; i < 4; ++i) reserve_parameter({channels});
     insert_new(params, prefix + ".gamma", at::ones({channels}, at::kFloat).requires_grad_(true));
     insert_new(params, prefix + ".beta", at::zeros({channels}, at::kFloat).requires_grad_(true));
     insert_new(buffers, prefix + ".running_mean", at::zeros({channels}, at::kFloat));

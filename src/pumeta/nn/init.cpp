@@ -21,6 +21,7 @@ void insert_new(ParamMap& params, const std::string& name, at::Tensor tensor) {
 void add_xavier_uniform(ParamMap& params, const std::string& name, int64_t fan_out, int64_t fan_in,
                         std::mt19937_64& rng) {
     double limit = std::sqrt(6.0 / double(fan_in + fan_out));
+    reserve_parameter({fan_out, fan_in});
     at::Tensor weight = at::empty({fan_out, fan_in}, at::kFloat);
     float* data = weight.data_ptr<float>();
     for (int64_t i = 0; i < weight.numel(); ++i)
@@ -29,6 +30,7 @@ void add_xavier_uniform(ParamMap& params, const std::string& name, int64_t fan_o
 }
 
 void add_zeros(ParamMap& params, const std::string& name, int64_t size) {
+    reserve_parameter({size});
     insert_new(params, name, at::zeros({size}, at::kFloat));
 }
 

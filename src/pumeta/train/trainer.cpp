@@ -82,11 +82,6 @@ double learning_rate(const TrainConfig& c, int64_t step) {
     return std::max(lr, c.lr_min);
 }
 
-void append_log(const fs::path& file, const nlohmann::json& record) {
-    std::ofstream out(file, std::ios::app);
-    out << record.dump() << "\n";
-}
-
 /// Validation CD on this rank's shard of the validation set, combined over all ranks.
 double distributed_validation_cd(const Backbone& model, const ValidationSet& val,
                                  ProcessGroup& group) {
@@ -152,19 +147,22 @@ void initialise_from(Backbone& model, const std::string& path, bool log) {
 
 }  // namespace
 
-TrainResult train(const TrainConfig& config, bool resume, double stop_after_seconds) {
+TrainResult train(const TrainConfig& config, bool resume, double stop_after_seconds,
+                  const std::vector<std::string>& allow_changes) {
     check_blas_speed();
     ProcessGroup group(config.distributed);
     // Rank 0 alone writes the run directory; the others only read it when resuming.
     bool writes = group.is_main();
     fs::path state_file = fs::path(config.run_dir) / "state.ckpt";
     fs::path log_file = fs::path(config.run_dir) / "log.jsonl";
-    TrainingState opened = open_run(config.run_dir, resume, writes, "train", [&] {
-        if (config.backbone.is_null()) throw_input_error("train config", "'backbone' is required");
-        std::unique_ptr<Backbone> fresh = make_backbone(config.backbone);
-        if (!config.init_from.empty()) initialise_from(*fresh, config.init_from, writes);
-        return fresh;
-    });
+    TrainingState opened =
+        open_run(config.run_dir, {resume, allow_changes}, writes, "train", config.to_json(), [&] {
+            if (config.backbone.is_null())
+                throw_input_error("train config", "'backbone' is required");
+            std::unique_ptr<Backbone> fresh = make_backbone(config.backbone);
+            if (!config.init_from.empty()) initialise_from(*fresh, config.init_from, writes);
+            return fresh;
+        });
     std::unique_ptr<Backbone> model = std::move(opened.model);
     nlohmann::json state_info = opened.info;
     ParamMap optimizer_state = std::move(opened.optimizer);
@@ -216,7 +214,7 @@ TrainResult train(const TrainConfig& config, bool resume, double stop_after_seco
                                {"best_val_cd", best_val},
                                {"last_val_cd", last_val},
                                {"loader_position", loader.position()},
-                               {"train_config", config.to_json()}};
+                               {kRunConfigKey, comparable_config(config.to_json())}};
         save_training_state(state_file.string(), *model, adam.state(), info);
         nlohmann::json model_extra = extra;
         model_extra["step"] = step;
@@ -271,7 +269,7 @@ TrainResult train(const TrainConfig& config, bool resume, double stop_after_seco
                 line["loss_" + name] = sum / loss_count;
                 sum = 0;
             }
-            append_log(log_file, line);
+            append_log(log_file.string(), line);
             loss_sum = 0;
             loss_count = 0;
         }
@@ -287,11 +285,11 @@ TrainResult train(const TrainConfig& config, bool resume, double stop_after_seco
                                 best_extra);
             }
             if (writes) {
-                append_log(log_file, {{"step", step},
-                                      {"val_cd", last_val},
-                                      {"best", improved},
-                                      {"input_cd", val->input_cd},
-                                      {"seconds", elapsed()}});
+                append_log(log_file.string(), {{"step", step},
+                                               {"val_cd", last_val},
+                                               {"best", improved},
+                                               {"input_cd", val->input_cd},
+                                               {"seconds", elapsed()}});
                 spdlog::info("train: step {} val CD {:.4e} (best {:.4e}, input {:.4e})", step,
                              last_val, best_val, val->input_cd);
             }

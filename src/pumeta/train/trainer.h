@@ -63,6 +63,7 @@ struct TrainResult {
 
 /// Trains (or, with resume, continues the run in config.run_dir) until config.steps.
 /// Stops early, after writing a checkpoint, when `stop_after_seconds` > 0 elapses.
-TrainResult train(const TrainConfig& config, bool resume, double stop_after_seconds = 0);
+TrainResult train(const TrainConfig& config, bool resume, double stop_after_seconds = 0,
+                  const std::vector<std::string>& allow_changes = {});
 
 }  // namespace pumeta

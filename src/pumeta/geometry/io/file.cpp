@@ -1,5 +1,7 @@
 #include "pumeta/geometry/io/file.h"
 
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <cerrno>
@@ -21,26 +23,50 @@ struct FileCloser {
 };
 using FilePtr = std::unique_ptr<std::FILE, FileCloser>;
 
+struct DescriptorCloser {
+    int fd;
+    ~DescriptorCloser() { ::close(fd); }
+};
+
+const char* file_kind(mode_t mode) {
+    if (S_ISDIR(mode)) return "a directory";
+    if (S_ISFIFO(mode)) return "a FIFO (named pipe)";
+    if (S_ISCHR(mode)) return "a character device";
+    if (S_ISBLK(mode)) return "a block device";
+    if (S_ISSOCK(mode)) return "a socket";
+    return "not a regular file";
+}
+
 }  // namespace
 
 std::string read_whole_file(const std::string& path) {
-    std::error_code error;
-    const fs::file_status status = fs::status(path, error);
-    if (!fs::exists(status)) throw_input_error(path, "file not found");
-    if (fs::is_directory(status)) throw_input_error(path, "is a directory, not a file");
-    FilePtr file(std::fopen(path.c_str(), "rb"));
-    if (!file) throw_input_error(path, "cannot open: {}", std::strerror(errno));
-    // One read of the reported size, then on to the end: pipes and /proc files report none.
-    std::string bytes;
-    const uintmax_t size = fs::file_size(path, error);
-    if (!error && size > 0) {
-        bytes.resize(size);
-        bytes.resize(std::fread(bytes.data(), 1, size, file.get()));
+    // Opened without blocking, so that a FIFO with no writer cannot hang the open; the type is
+    // then checked on the open descriptor, so that nothing can swap the file in between.
+    const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+    if (fd < 0) {
+        if (errno == ENOENT) throw_input_error(path, "file not found");
+        throw_input_error(path, "cannot open: {}", std::strerror(errno));
     }
-    char buffer[1 << 16];
-    size_t got;
-    while ((got = std::fread(buffer, 1, sizeof(buffer), file.get())) > 0) bytes.append(buffer, got);
-    if (std::ferror(file.get())) throw_input_error(path, "read error: {}", std::strerror(errno));
+    DescriptorCloser closer{fd};
+    struct stat info {};
+    if (::fstat(fd, &info) != 0) throw_input_error(path, "cannot stat: {}", std::strerror(errno));
+    if (!S_ISREG(info.st_mode))
+        throw_input_error(path, "is {}; only regular files are read", file_kind(info.st_mode));
+    // The size is taken once; a file that grows meanwhile is read up to that size, one that
+    // shrinks is read to its new end.
+    const size_t size = static_cast<size_t>(info.st_size);
+    if (size == 0) throw_input_error(path, "file is empty");
+    std::string bytes;
+    bytes.resize(size);
+    size_t got = 0;
+    while (got < size) {
+        const ssize_t n = ::read(fd, bytes.data() + got, size - got);
+        if (n < 0 && errno == EINTR) continue;
+        if (n < 0) throw_input_error(path, "read error: {}", std::strerror(errno));
+        if (n == 0) break;
+        got += static_cast<size_t>(n);
+    }
+    bytes.resize(got);
     if (bytes.empty()) throw_input_error(path, "file is empty");
     return bytes;
 }

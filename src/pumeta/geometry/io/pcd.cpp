@@ -37,6 +37,11 @@ struct Header {
     int64_t header_lines = 0;
 };
 
+// A field of more values than this is not a point attribute (PCL's largest descriptors, such
+// as the 1,980 values of SHOT with colour, stay far below); it also keeps record sizes and
+// offsets far from overflow.
+constexpr size_t kMaxFieldCount = 1 << 16;
+
 uint64_t parse_count(std::string_view token, const std::string& path, int64_t line,
                      const char* what) {
     const int64_t value = parse_or_throw<int64_t>(token, path, line, what);
@@ -122,8 +127,13 @@ Header parse_header(const std::string& path, std::string_view data) {
         if (!valid)
             throw_input_error(path, "field '{}' has an unsupported TYPE {} with SIZE {}",
                               field.name, field.type, field.size);
+        if (field.count == 0 || field.count > kMaxFieldCount)
+            throw_input_error(path, "field '{}' has COUNT {}; expected 1 to {}", field.name,
+                              field.count, kMaxFieldCount);
         field.offset = header.record_bytes;
         field.token = header.record_tokens;
+        // Bounded by kMaxFieldCount * 8 bytes per field and the number of header tokens, so
+        // neither sum can wrap.
         header.record_bytes += field.size * field.count;
         header.record_tokens += field.count;
     }
@@ -193,8 +203,11 @@ Layout find_fields(const std::string& path, const Header& header) {
         if (header.fields[layout.xyz[axis]].count != 1)
             throw_input_error(path, "field '{}' must have COUNT 1", xyz_names[axis]);
     }
-    if (layout.normal[0] < 0 || layout.normal[1] < 0 || layout.normal[2] < 0)
-        layout.normal[0] = layout.normal[1] = layout.normal[2] = -1;
+    bool normals = true;
+    for (int axis = 0; axis < 3; ++axis)
+        normals =
+            normals && layout.normal[axis] >= 0 && header.fields[layout.normal[axis]].count == 1;
+    if (!normals) layout.normal[0] = layout.normal[1] = layout.normal[2] = -1;
     return layout;
 }
 

@@ -375,6 +375,20 @@ class BinaryReader {
         if (needed > remaining()) fail_truncated(element, row, needed);
     }
 
+    // The bytes of a list-free element's `count` rows at the current position, checked against
+    // what remains: lists in earlier elements move the position past the up-front estimate.
+    size_t fixed_block_bytes(const Element& element) const {
+        uint64_t bytes = 0;
+        if (__builtin_mul_overflow(element.count, element.min_row_bytes(), &bytes) ||
+            bytes > remaining())
+            throw_input_error(path_,
+                              "truncated binary PLY: element '{}' needs {} rows of {} bytes "
+                              "from byte offset {}, but only {} bytes remain",
+                              element.name, element.count, element.min_row_bytes(), position_,
+                              remaining());
+        return static_cast<size_t>(bytes);
+    }
+
     // Visits every value of a row-by-row walk: on_scalar(row, property, bytes) and
     // on_list(row, property, length, item_bytes).
     template <typename OnScalar, typename OnList>
@@ -422,6 +436,8 @@ class BinaryReader {
             return;
         }
         // Fixed layout (the common case): every value sits at a known offset of its row.
+        const size_t block = fixed_block_bytes(element);
+        if (element.count == 0) return;
         const size_t stride = element.min_row_bytes();
         const char* base = data_.data() + position_;
         const int64_t count = static_cast<int64_t>(element.count);
@@ -446,7 +462,7 @@ class BinaryReader {
                     sink.store(row, target, load_value(value + row * stride, type, swap_), type);
             }
         }
-        position_ += stride * element.count;
+        position_ += block;
     }
 
     // Fills the float32 [count,3] `out` with the properties targeted first..first+2; three
@@ -497,7 +513,7 @@ class BinaryReader {
 
     void skip(const Element& element) {
         if (!element.has_lists()) {
-            position_ += element.min_row_bytes() * element.count;  // checked up front
+            position_ += fixed_block_bytes(element);
             return;
         }
         walk(

@@ -17,6 +17,7 @@ namespace {
 constexpr const char* kContext = "sparse convolution";
 
 at::Tensor uniform_tensor(at::IntArrayRef shape, double limit, std::mt19937_64& rng) {
+    reserve_parameter(shape);
     at::Tensor t = at::empty(shape, at::kFloat);
     float* data = t.data_ptr<float>();
     for (int64_t i = 0; i < t.numel(); ++i) data[i] = float((2.0 * uniform01(rng) - 1.0) * limit);
