@@ -193,7 +193,7 @@ void write_checkpoints(const fs::path& dir) {
     save_checkpoint((dir / "pudense.pt").string(),
                     *make_backbone({{"backbone", "pudense"},
                                     {"ratio", 4},
-                                    {"channels", {2, 2, 2, 2, 2}},
+                                    {"channels", {4, 4, 4, 4, 4}},
                                     {"resolution", 4},
                                     {"patch_size", 8},
                                     {"seed", 1}}),

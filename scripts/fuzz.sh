@@ -54,8 +54,11 @@ fuzz_one() {
     mkdir -p "$findings" "$fresh"
     echo failed > "build-fuzz/findings/$target.status"
     # -rss_limit_mb: a reader must never need GiBs for a small file; -timeout: nor seconds.
+    # Checkpoints are larger than geometry files (the PU-Dense seed is 147 kB).
+    local max_len=8192
+    [[ $target == load_checkpoint ]] && max_len=262144
     "build-fuzz/fuzz_$target" "$fresh" "fuzz/corpus/$target" \
-        -max_total_time="$seconds" -max_len=8192 -timeout=10 -rss_limit_mb=3072 \
+        -max_total_time="$seconds" -max_len="$max_len" -timeout=10 -rss_limit_mb=3072 \
         -print_final_stats=1 -artifact_prefix="$findings/" \
         > "build-fuzz/findings/$target.log" 2>&1 || return 0
     "build-fuzz/fuzz_$target" -merge=1 "fuzz/corpus/$target" "$fresh" \

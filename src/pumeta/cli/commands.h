@@ -4,6 +4,7 @@
 
 #include <CLI/CLI.hpp>
 #include <string>
+#include <vector>
 
 #include "pumeta/geometry/io.h"
 
@@ -41,6 +42,17 @@ CLI::Validator seed_value();
 
 /// Options shared by commands that read geometry files: --format, --drop-invalid.
 void add_read_options(CLI::App& command, ReadOptions& options);
+
+/// The options of train and meta-train that shape a run: --config, --set, --resume,
+/// --max-minutes, --allow-change.
+struct RunArgs {
+    std::string config;
+    std::vector<std::string> overrides;
+    bool resume = false;
+    double max_minutes = 0;
+    std::vector<std::string> allow_changes;
+};
+void add_run_options(CLI::App& command, RunArgs& args, const std::string& what);
 
 /// --world-size, --rank, --master of train and meta-train.
 struct DistributedArgs {

@@ -94,6 +94,19 @@ void add_read_options(CLI::App& command, ReadOptions& options) {
                      "drop points with NaN or infinite coordinates instead of failing");
 }
 
+void add_run_options(CLI::App& command, RunArgs& args, const std::string& what) {
+    command.add_option("--config", args.config, what + " config JSON")->required();
+    command.add_option("--set", args.overrides, "override a config field: key=value");
+    command.add_flag("--resume", args.resume, "continue the run in run_dir from state.ckpt");
+    command
+        .add_option("--max-minutes", args.max_minutes,
+                    "checkpoint and stop after this many minutes (0 = no limit)")
+        ->check(number_in(0, 1e7));
+    command.add_option("--allow-change", args.allow_changes,
+                       "with --resume: a config field (e.g. steps) allowed to differ from the "
+                       "run's; repeatable");
+}
+
 void add_distributed_options(CLI::App& command, DistributedArgs& args) {
     command
         .add_option("--world-size", args.world_size,

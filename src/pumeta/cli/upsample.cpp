@@ -209,37 +209,25 @@ void add_eval_command(CLI::App& app, const std::string& command_line) {
 
 void add_meta_train_command(CLI::App& app) {
     struct Args {
-        std::string config;
-        std::vector<std::string> overrides;
-        bool resume = false;
+        RunArgs run;
         bool first_order = false;
-        double max_minutes = 0;
         DistributedArgs distributed;
-        std::vector<std::string> allow_changes;
     };
     auto args = std::make_shared<Args>();
     CLI::App* command =
         app.add_subcommand("meta-train", "meta-train a pretrained model (MAML, Algorithm 1)");
-    command->add_option("--config", args->config, "meta-training config JSON")->required();
-    command->add_option("--set", args->overrides, "override a config field: key=value");
-    command->add_flag("--resume", args->resume, "continue the run in run_dir");
+    add_run_options(*command, args->run, "meta-training");
     command->add_flag("--first-order", args->first_order, "first-order MAML (FOMAML)");
-    command
-        ->add_option("--max-minutes", args->max_minutes,
-                     "checkpoint and stop after this many minutes (0 = no limit)")
-        ->check(number_in(0, 1e7));
-    command->add_option("--allow-change", args->allow_changes,
-                        "with --resume: a config field (e.g. steps) allowed to differ from the "
-                        "run's; repeatable");
     add_distributed_options(*command, args->distributed);
     command->callback([args] {
-        nlohmann::json j = read_json_file(args->config);
-        apply_overrides(j, args->overrides);
+        const RunArgs& run = args->run;
+        nlohmann::json j = read_json_file(run.config);
+        apply_overrides(j, run.overrides);
         if (args->first_order) j["meta"]["first_order"] = true;
         apply_distributed_args(j, args->distributed);
         catch_interrupts();
-        MetaTrainResult r = meta_train(MetaTrainConfig::from_json(j), args->resume,
-                                       args->max_minutes * 60.0, args->allow_changes);
+        MetaTrainResult r = meta_train(MetaTrainConfig::from_json(j), run.resume,
+                                       run.max_minutes * 60.0, run.allow_changes);
         print_json({{"steps", r.steps},
                     {"val_cd_before", r.last.cd_before},
                     {"val_cd_after", r.last.cd_after},
