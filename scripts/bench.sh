@@ -3,6 +3,8 @@
 #   scripts/bench.sh foundation   kNN, Chamfer, FPS, Poisson disk, PLY reading (issue: foundation),
 #                                 patch extraction of a 300k-point cloud, sparse convolution
 #   scripts/bench.sh upsample     whole-cloud 2,048 -> 8,192 upsampling, plain vs adaptation
+#   scripts/bench.sh scaling      4x on 100k and 1M points: the midpoint baseline's time in units
+#                                 of the network's on the same cloud (target <= 2x at 1M)
 #   scripts/bench.sh memory       peak resident memory of `pumeta upsample` on 10k, 100k and 1M
 #                                 input points (GNU time), ratio vs the 10k run
 #   scripts/bench.sh all
@@ -39,6 +41,12 @@ if [[ $what == foundation || $what == all ]]; then
 fi
 if [[ $what == upsample || $what == all ]]; then
     run upsample bench_inference_upsample '.'
+fi
+if [[ $what == scaling || $what == all ]]; then
+    # One run each (the network takes a minute and more on 1M points); the binary prints the
+    # ratio itself.
+    [[ -x $build/bench_inference_large_clouds ]] && "$build/bench_inference_large_clouds" \
+        --benchmark_format=console 2> /dev/null
 fi
 if [[ $what == memory || $what == all ]]; then
     # Inputs: uniform samples of one generated shape; the shipped 4x model, 2 threads.
