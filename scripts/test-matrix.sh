@@ -17,8 +17,8 @@ scripts/build.sh
 summary=() failed=0
 for setting in "${settings[@]}"; do
     kernel=${setting%%:*} threads=${setting##*:}
-    env=(env OMP_NUM_THREADS="$threads")
-    [[ $kernel == default ]] && env+=(-u OPENBLAS_CORETYPE) || env+=(OPENBLAS_CORETYPE="$kernel")
+    env=(env -u OPENBLAS_CORETYPE OMP_NUM_THREADS="$threads")
+    [[ $kernel == default ]] || env+=(OPENBLAS_CORETYPE="$kernel")
     echo "== OPENBLAS_CORETYPE=$kernel OMP_NUM_THREADS=$threads"
     if (cd build && "${env[@]}" ctest --output-on-failure -j"$(nproc)" --timeout 900); then
         summary+=("pass  OPENBLAS_CORETYPE=$kernel OMP_NUM_THREADS=$threads")

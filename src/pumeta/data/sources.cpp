@@ -80,9 +80,11 @@ std::vector<SourceModel> list_furniture(const std::string& raw_dir) {
             if (!model.empty() && model[0] == '/') model.erase(0, 1);
             if (lower(fs::path(model).extension().string()) != ".obj") continue;
             if (!fs::exists(dir / model)) continue;
+            // A named reference: C++17 lambdas cannot capture a structured binding (clang).
+            const auto& properties = fields;
             auto get = [&](const char* key) {
-                auto it = fields.find(key);
-                return it == fields.end() ? std::string() : it->second;
+                auto it = properties.find(key);
+                return it == properties.end() ? std::string() : it->second;
             };
             SourceModel m;
             m.path = (fs::path("furniture") / catalogue / model).string();

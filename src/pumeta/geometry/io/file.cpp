@@ -9,6 +9,7 @@
 #include <cstring>
 #include <filesystem>
 #include <memory>
+#include <new>
 
 #include "pumeta/core/error.h"
 
@@ -57,7 +58,11 @@ std::string read_whole_file(const std::string& path) {
     const size_t size = static_cast<size_t>(info.st_size);
     if (size == 0) throw_input_error(path, "file is empty");
     std::string bytes;
-    bytes.resize(size);
+    try {
+        bytes.resize(size);
+    } catch (const std::bad_alloc&) {
+        throw_input_error(path, "{} bytes do not fit in memory", size);
+    }
     size_t got = 0;
     while (got < size) {
         const ssize_t n = ::read(fd, bytes.data() + got, size - got);
