@@ -4,6 +4,7 @@
 // minute and more on a million points); after the runs, the midpoint's time in units of the
 // network's time on the same cloud (target: at most 2x on 1M points).
 #include <ATen/ATen.h>
+#include <ATen/Parallel.h>
 #include <benchmark/benchmark.h>
 
 #include <chrono>
