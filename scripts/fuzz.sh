@@ -5,6 +5,8 @@
 #                                           read_ply read_pcd read_las read_obj read_off
 #                                           read_stl read_xyz load_checkpoint (default: all)
 #   PUMETA_FUZZ_JOBS=N                      targets fuzzed at once (default: the core count)
+#   PUMETA_FUZZ_FORK=N                      N processes per target (libFuzzer -fork), for a
+#                                           slow target such as load_checkpoint
 # Starts from fuzz/corpus/<target>/ (seeds written by fuzz_make_seeds, plus inputs kept by
 # earlier runs) and merges the new inputs that add coverage back into it, minimised. A crash
 # is kept as build-fuzz/findings/<target>/crash-* and makes the script fail; turn it into a
@@ -57,7 +59,9 @@ fuzz_one() {
     # Checkpoints are larger than geometry files (the PU-Dense seed is 147 kB).
     local max_len=8192
     [[ $target == load_checkpoint ]] && max_len=262144
-    "build-fuzz/fuzz_$target" "$fresh" "fuzz/corpus/$target" \
+    local fork=()
+    [[ -n ${PUMETA_FUZZ_FORK:-} ]] && fork=(-fork="$PUMETA_FUZZ_FORK")
+    "build-fuzz/fuzz_$target" "${fork[@]}" "$fresh" "fuzz/corpus/$target" \
         -max_total_time="$seconds" -max_len="$max_len" -timeout=10 -rss_limit_mb=3072 \
         -print_final_stats=1 -artifact_prefix="$findings/" \
         > "build-fuzz/findings/$target.log" 2>&1 || return 0
@@ -82,9 +86,12 @@ echo "| target | seconds | executions | exec/s | edges (cov) | features (ft) | c
 echo "|---|---:|---:|---:|---:|---:|---:|"
 for target in "${targets[@]}"; do
     log=build-fuzz/findings/$target.log
-    runs=$(grep -o 'stat::number_of_executed_units: [0-9]*' "$log" | grep -o '[0-9]*$' || echo "?")
-    speed=$(grep -o 'stat::average_exec_per_sec: [0-9]*' "$log" | grep -o '[0-9]*$' || echo "?")
+    # The final stats of a single process, else (fork mode) the last status line's count.
     last=$(grep -E '^#[0-9]+' "$log" | tail -n 1)
+    runs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' ||
+           grep -o '^#[0-9]*' <<<"$last" | tr -d '#')
+    speed=$(grep -o 'stat::average_exec_per_sec: *[0-9]*' "$log" | grep -o '[0-9]*$' ||
+            echo $((runs / seconds)))
     cov=$(grep -o 'cov: [0-9]*' <<<"$last" | grep -o '[0-9]*$' || echo "?")
     ft=$(grep -o 'ft: [0-9]*' <<<"$last" | grep -o '[0-9]*$' || echo "?")
     files=$(find "fuzz/corpus/$target" -type f | wc -l)

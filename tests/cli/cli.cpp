@@ -117,6 +117,15 @@ TEST(Cli, UpsampleGivesTheSameBytesWithOneOrTwoThreads) {
         }
 }
 
+TEST(Cli, AConfigNumberOutOfRangeIsAOneLineInputError) {
+    test::TempDir dir;
+    test::write_file(dir.file("c.json"), "{\"steps\": 1e4308}");
+    auto r = test::run_cli({"train", "--config", dir.file("c.json")});
+    EXPECT_EQ(r.exit_code, 2) << r.err;
+    EXPECT_TRUE(one_line(r.err)) << r.err;
+    EXPECT_NE(r.err.find("c.json: invalid JSON"), std::string::npos) << r.err;
+}
+
 TEST(Cli, MetricsJsonHasTheContractKeys) {
     test::TempDir dir;
     at::Tensor gt = uniform_random_points(200, 1);

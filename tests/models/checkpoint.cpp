@@ -114,6 +114,15 @@ TEST(Checkpoint, TruncatedWrongMagicAndMissingFilesAreInputErrors) {
     EXPECT_TRUE(contains(load_error(dir.file("missing.ckpt")), "missing.ckpt: file not found"));
 }
 
+// Found by fuzzing: a number beyond double's range made the JSON parser throw an exception
+// other than its parse error, which escaped as an internal error.
+TEST(Checkpoint, AHeaderNumberOutOfRangeIsCorruption) {
+    test::TempDir dir;
+    test::write_file(dir.file("huge.ckpt"), "PUMETA-CKPT\n{\"format_version\": 1e4308}\n");
+    EXPECT_TRUE(contains(load_error(dir.file("huge.ckpt")),
+                         "huge.ckpt: checkpoint is corrupted (header is not valid JSON)"));
+}
+
 // A header edited by hand and its hash recomputed (what a fuzzer or a forger does): the stored
 // config asks for a network far larger than the file's tensors, which must fail before the
 // network is allocated (a PU-GCN of width 60,000 would need tens of GiB).

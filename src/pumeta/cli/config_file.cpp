@@ -4,16 +4,18 @@
 #include <fstream>
 
 #include "pumeta/core/error.h"
+#include "pumeta/geometry/io/file.h"
 
 namespace pumeta::cli {
 
 nlohmann::json read_json_file(const std::string& path) {
-    std::ifstream in(path);
-    if (!in) throw_input_error(path, "cannot open config file");
+    const std::string text = io::read_whole_file(path);
     try {
-        return nlohmann::json::parse(in, nullptr, true, /*ignore_comments=*/true);
+        return nlohmann::json::parse(text, nullptr, true, /*ignore_comments=*/true);
     } catch (const nlohmann::json::parse_error& e) {
         throw_input_error(path, "invalid JSON at byte {}", e.byte);
+    } catch (const nlohmann::json::exception& e) {  // e.g. a number beyond double's range
+        throw_input_error(path, "invalid JSON: {}", e.what());
     }
 }
 
@@ -26,7 +28,7 @@ void apply_overrides(nlohmann::json& config, const std::vector<std::string>& ove
         nlohmann::json value;
         try {
             value = nlohmann::json::parse(text);
-        } catch (const nlohmann::json::parse_error&) {
+        } catch (const nlohmann::json::exception&) {  // not JSON (or out of range): a string
             value = text;
         }
         nlohmann::json* node = &config;

@@ -131,6 +131,8 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
         index = nlohmann::json::parse(std::ifstream(index_file));
     } catch (const nlohmann::json::parse_error& e) {
         throw_input_error(index_file.string(), "invalid JSON at byte {}", e.byte);
+    } catch (const nlohmann::json::exception& e) {  // e.g. a number beyond double's range
+        throw_input_error(index_file.string(), "invalid JSON: {}", e.what());
     }
     if ((options.method == "network" || options.method == "zero-shot") && !model)
         throw_input_error("eval", "method '{}' needs --model", options.method);

@@ -719,7 +719,9 @@ nlohmann::json tables_pass(const ReproduceConfig& config, Runner& runner,
                             {}});
         }
         for (const std::string& backbone : config.backbones) {
-            auto [plain, meta] = models(backbone, r);
+            const auto found = models(backbone, r);  // named: lambdas below use them
+            const auto& plain = found.first;
+            const auto& meta = found.second;
             if (!plain) continue;
             TableWriter::Row base{
                 display_name(backbone),
@@ -770,7 +772,9 @@ nlohmann::json tables_pass(const ReproduceConfig& config, Runner& runner,
         }
         for (const std::string& backbone : config.backbones) {
             if (!only.empty() && !std::count(only.begin(), only.end(), backbone)) continue;
-            auto [plain, meta] = models(backbone, r);
+            const auto found = models(backbone, r);  // named: lambdas below use them
+            const auto& plain = found.first;
+            const auto& meta = found.second;
             if (!plain) continue;
             TableWriter::Row base{display_name(backbone), {}, {}};
             for (const std::string& level : levels)
@@ -829,7 +833,9 @@ nlohmann::json tables_pass(const ReproduceConfig& config, Runner& runner,
               "separates what meta-training changed in the weights from what adaptation adds.\n\n";
         std::vector<TableWriter::Row> rows;
         for (const std::string& backbone : config.backbones) {
-            auto [plain, meta] = models(backbone, r);
+            const auto found = models(backbone, r);  // named: lambdas below use them
+            const auto& plain = found.first;
+            const auto& meta = found.second;
             if (!plain) continue;
             TableWriter::Row base{
                 display_name(backbone),
@@ -866,7 +872,9 @@ nlohmann::json tables_pass(const ReproduceConfig& config, Runner& runner,
               "the first row of each backbone is the plain backbone.\n\n";
         std::vector<TableWriter::Row> rows;
         for (const std::string& backbone : config.sweep_backbones) {
-            auto [plain, meta] = models(backbone, r);
+            const auto found = models(backbone, r);  // named: lambdas below use them
+            const auto& plain = found.first;
+            const auto& meta = found.second;
             if (!plain || !meta) continue;
             TableWriter::Row base{
                 display_name(backbone) + ", plain", {network(set, r, *plain, 0)}, {}};
@@ -906,7 +914,9 @@ nlohmann::json tables_pass(const ReproduceConfig& config, Runner& runner,
              per_set([&](const std::string& set) { return first(spec(set, r, "midpoint")); }),
              {}});
         for (const std::string& backbone : config.backbones) {
-            auto [plain, meta] = models(backbone, r);
+            const auto found = models(backbone, r);  // named: lambdas below use them
+            const auto& plain = found.first;
+            const auto& meta = found.second;
             if (!plain) continue;
             TableWriter::Row base{display_name(backbone),
                                   per_set([&](const std::string& set) {

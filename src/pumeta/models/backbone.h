@@ -25,7 +25,7 @@ using LossTerms = std::vector<std::pair<std::string, at::Tensor>>;
 /// terms[0] + terms[1] + ... (in that order). `terms` must not be empty.
 inline at::Tensor sum_of(const LossTerms& terms) {
     at::Tensor total = terms.front().second;
-    for (size_t i = 1; i < terms.size(); ++i) total = total + terms[i].second;
+    for (size_t i = 1; i < terms.size(); ++i) total = total.add(terms[i].second);
     return total;
 }
 

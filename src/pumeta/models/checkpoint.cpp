@@ -181,7 +181,7 @@ Container parse_container(const std::string& path, std::string_view bytes) {
     nlohmann::json& header = container.header;
     try {
         header = nlohmann::json::parse(bytes.begin() + kMagicSize, bytes.begin() + header_end);
-    } catch (const nlohmann::json::parse_error&) {
+    } catch (const nlohmann::json::exception&) {  // syntax, or a number out of range
         throw_input_error(path, "checkpoint is corrupted (header is not valid JSON)");
     }
     if (!header.is_object() || !header.contains("format_version"))
