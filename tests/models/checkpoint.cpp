@@ -37,6 +37,24 @@ bool contains(const std::string& text, const std::string& part) {
     return text.find(part) != std::string::npos;
 }
 
+// The checkpoint `bytes` with its header edited and its hash recomputed, as a file edited by
+// hand (or by a fuzzer) would be.
+template <class Edit>
+std::string resealed(const std::string& bytes, Edit edit) {
+    const size_t magic = std::string("PUMETA-CKPT\n").size();
+    const size_t end = bytes.find('\n', magic);
+    nlohmann::json header = nlohmann::json::parse(bytes.substr(magic, end - magic));
+    edit(header);
+    header.erase("sha256");
+    const std::string payload = bytes.substr(end + 1);
+    Sha256 hash;
+    const std::string text = header.dump() + "\n";
+    hash.update(text.data(), text.size());
+    hash.update(payload.data(), payload.size());
+    header["sha256"] = hash.hex_digest();
+    return bytes.substr(0, magic) + header.dump() + "\n" + payload;
+}
+
 }  // namespace
 
 TEST(Checkpoint, RoundTripRebuildsTheBackboneWithIdenticalOutputs) {
@@ -129,26 +147,35 @@ TEST(Checkpoint, AHeaderNumberOutOfRangeIsCorruption) {
 TEST(Checkpoint, AConfigLargerThanTheFileIsRefusedBeforeAllocating) {
     test::TempDir dir;
     save_checkpoint(dir.file("m.ckpt"), *make_backbone(small_config()));
-    const std::string bytes = test::read_file(dir.file("m.ckpt"));
-    const size_t magic = std::string("PUMETA-CKPT\n").size();
-    const size_t end = bytes.find('\n', magic);
-    nlohmann::json header = nlohmann::json::parse(bytes.substr(magic, end - magic));
-    header["config"]["channels"] = 60000;
-    header.erase("sha256");
-    const std::string payload = bytes.substr(end + 1);
-    Sha256 hash;
-    const std::string text = header.dump() + "\n";
-    hash.update(text.data(), text.size());
-    hash.update(payload.data(), payload.size());
-    header["sha256"] = hash.hex_digest();
     test::write_file(dir.file("forged.ckpt"),
-                     bytes.substr(0, magic) + header.dump() + "\n" + payload);
+                     resealed(test::read_file(dir.file("m.ckpt")), [](nlohmann::json& header) {
+                         header["config"]["channels"] = 60000;
+                     }));
     const std::string message = load_error(dir.file("forged.ckpt"));
     EXPECT_TRUE(contains(message, "forged.ckpt: stored config cannot be rebuilt")) << message;
     EXPECT_TRUE(contains(message, "larger than the file's tensors")) << message;
     // The same bytes in memory.
     EXPECT_THROW(parse_checkpoint("forged.ckpt", test::read_file(dir.file("forged.ckpt"))),
                  InputError);
+}
+
+// Found by fuzzing: a tensor offset written as a float beyond 2^64 was converted to an integer
+// (undefined behaviour) before any check.
+TEST(Checkpoint, NonIntegerTensorFieldsAreCorruption) {
+    test::TempDir dir;
+    save_checkpoint(dir.file("m.ckpt"), *make_backbone(small_config()));
+    const std::string bytes = test::read_file(dir.file("m.ckpt"));
+    for (const char* field : {"offset", "nbytes", "shape"}) {
+        test::write_file(dir.file("forged.ckpt"), resealed(bytes, [&](nlohmann::json& header) {
+                             nlohmann::json& entry = header["tensors"]["out.fc2.bias"];
+                             entry[field] = std::string(field) == "shape"
+                                                ? nlohmann::json::array({2.3e93})
+                                                : nlohmann::json(2.3e93);
+                         }));
+        EXPECT_TRUE(contains(load_error(dir.file("forged.ckpt")),
+                             "tensor 'out.fc2.bias' has a non-integer shape, offset or size"))
+            << field;
+    }
 }
 
 TEST(Checkpoint, TensorsThatDoNotFitTheBackboneAreNamed) {

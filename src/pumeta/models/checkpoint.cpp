@@ -147,7 +147,14 @@ at::Tensor read_tensor(const std::string& path, const std::string& name,
         if (!known)
             throw_input_error(path, "tensor '{}' has unknown dtype {}", name,
                               entry.at("dtype").dump());
-        std::vector<int64_t> shape = entry.at("shape").get<std::vector<int64_t>>();
+        // Types first: converting a JSON float such as 2.3e93 to an integer is undefined.
+        const nlohmann::json& dims = entry.at("shape");
+        bool valid = dims.is_array() && entry.at("offset").is_number_unsigned() &&
+                     entry.at("nbytes").is_number_unsigned();
+        for (const nlohmann::json& dim : dims) valid = valid && dim.is_number_integer();
+        if (!valid)
+            throw_input_error(path, "tensor '{}' has a non-integer shape, offset or size", name);
+        std::vector<int64_t> shape = dims.get<std::vector<int64_t>>();
         size_t offset = entry.at("offset").get<size_t>();
         size_t nbytes = entry.at("nbytes").get<size_t>();
         // The shape's size is checked against the payload before anything is allocated.
@@ -192,7 +199,8 @@ Container parse_container(const std::string& path, std::string_view bytes) {
     const std::string_view payload = bytes.substr(header_end + 1);
     if (!header.contains("payload_bytes") || !header["payload_bytes"].is_number_unsigned() ||
         !header.contains("sha256") || !header["sha256"].is_string() ||
-        !header.contains("tensors") || !header["tensors"].is_object())
+        !header.contains("tensors") || !header["tensors"].is_object() ||
+        (header.contains("content") && !header["content"].is_string()))
         throw_input_error(path, "checkpoint is corrupted (incomplete header)");
     const size_t expected = header["payload_bytes"].get<size_t>();
     if (payload.size() < expected)
@@ -246,6 +254,8 @@ LoadedCheckpoint parse_checkpoint(const std::string& path, std::string_view byte
         ParameterBudget budget(2 * stored_elements(container.tensors) + (1 << 20), "config");
         loaded.backbone = make_backbone(container.header["config"]);
     } catch (const InputError& e) {
+        throw_input_error(path, "stored config cannot be rebuilt: {}", e.what());
+    } catch (const nlohmann::json::exception& e) {
         throw_input_error(path, "stored config cannot be rebuilt: {}", e.what());
     }
     const std::string kind = loaded.backbone->name();
