@@ -1,7 +1,6 @@
 #include "pumeta/cli/config_file.h"
 
 #include <filesystem>
-#include <fstream>
 
 #include "pumeta/core/error.h"
 #include "pumeta/geometry/io/file.h"
