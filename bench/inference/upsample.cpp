@@ -52,8 +52,10 @@ void BM_Upsample(benchmark::State& state, int64_t tta_steps) {
         return;
     }
     UpsampleOptions options;
-    options.tta_steps = tta_steps;
-    set_adaptation(options, *used, used->meta_trained ? -1 : 0.03);
+    AdaptationOverrides overrides;
+    overrides.steps = tta_steps;
+    if (!used->meta_trained) overrides.step_size = 0.03;
+    options.adaptation = adaptation_for(used->adaptation, used->meta_trained, overrides);
     int64_t patches = 0;
     for (auto _ : state) {
         UpsampleResult result = upsample_cloud(*used->backbone, input_cloud(), options);
@@ -107,8 +109,9 @@ void print_adaptation_cost(int rounds) {
         InferenceModel plain = load_inference_model(plain_path);
         InferenceModel meta = load_inference_model(meta_path);
         UpsampleOptions plain_options, ours_options;
-        ours_options.tta_steps = 5;
-        set_adaptation(ours_options, meta);
+        AdaptationOverrides five;
+        five.steps = 5;
+        ours_options.adaptation = adaptation_for(meta.adaptation, meta.meta_trained, five);
         seconds_to_upsample(plain, plain_options);
         seconds_to_upsample(meta, ours_options);
         double plain_seconds = 0, ours_seconds = 0;

@@ -31,6 +31,8 @@ class ReproduceTest : public ::testing::Test {
     static void SetUpTestSuite() {
         dir_ = new test::TempDir();
         config_ = new nlohmann::json(test::make_tiny_reproduction(dir_->path()));
+        // Row labels come from the config, as in configs/reproduce.json.
+        (*config_)["backbone_labels"] = {{"pugcn", "PU-GCN"}, {"dispu", "Dis-PU"}};
     }
     static void TearDownTestSuite() {
         delete config_;

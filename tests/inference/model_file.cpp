@@ -69,5 +69,63 @@ TEST(LoadInferenceModel, RatioBoundWeightsKeepTheirRatio) {
     EXPECT_TRUE(make_backbone(test::tiny_dispu_config(4))->config_for_ratio(8).is_null());
 }
 
+TEST(Serve, DecidesTheRatioAndTheModelThatServesIt) {
+    test::TempDir dir;
+    save_checkpoint(dir.file("pugcn-x4.pt"), *make_backbone(test::tiny_pugcn_config(4, 1)));
+    save_checkpoint(dir.file("pugcn-x8.pt"), *make_backbone(test::tiny_pugcn_config(8, 2)));
+    setenv("PUMETA_MODELS", dir.path().c_str(), 1);
+    // No model and no ratio: the shipped default at its own ratio.
+    ServedModel served = serve("", 0);
+    EXPECT_EQ(served.ratio, kDefaultRatio);
+    EXPECT_EQ(served.model.backbone->ratio(), 4);
+    // No model: the shipped one for the ratio (8x native, 16x the 4x model twice).
+    EXPECT_EQ(serve("", 8).model.backbone->ratio(), 8);
+    served = serve("", 16);
+    EXPECT_EQ(served.ratio, 16);
+    EXPECT_EQ(served.model.backbone->ratio(), 4);
+    // A given model: its own ratio, or a power of it; anything else names both ratios.
+    EXPECT_EQ(serve(dir.file("pugcn-x8.pt"), 0).ratio, 8);
+    EXPECT_EQ(serve(dir.file("pugcn-x8.pt"), 64).ratio, 64);
+    EXPECT_TRUE(test::throws_input_error([&] { serve(dir.file("pugcn-x8.pt"), 4); },
+                                         {"ratio 4", "model's ratio 8"}));
+    unsetenv("PUMETA_MODELS");
+}
+
+TEST(Serve, AnyRatioWeightsAreRebuiltAtTheRatio) {
+    test::TempDir dir;
+    save_checkpoint(dir.file("pudense-x8.pt"), *make_backbone({{"backbone", "pudense"},
+                                                               {"ratio", 8},
+                                                               {"channels", {4, 4, 8, 8, 8}},
+                                                               {"resolution", 4},
+                                                               {"patch_size", 32},
+                                                               {"seed", 3}}));
+    ServedModel served = serve(dir.file("pudense-x8.pt"), 5);
+    EXPECT_EQ(served.ratio, 5);
+    EXPECT_EQ(served.model.backbone->ratio(), 5);
+}
+
+TEST(LoadInferenceModel, AMetaTrainedFileCarriesItsAdaptationDefaults) {
+    test::TempDir dir;
+    std::unique_ptr<Backbone> model = make_backbone(test::tiny_pugcn_config(4, 1));
+    save_checkpoint(dir.file("plain.pt"), *model);
+    InferenceModel plain = load_inference_model(dir.file("plain.pt"));
+    EXPECT_FALSE(plain.meta_trained);
+    EXPECT_FALSE(plain.adaptation.enabled());
+    // A file written before the meta options lost their investigation fields.
+    save_checkpoint(dir.file("meta.pt"), *model,
+                    {{"meta",
+                      {{"inner_steps", 3},
+                       {"inner_lr", 0.02},
+                       {"outer_objective", "loss"},
+                       {"inner_optimizer", "sgd"}}},
+                     {"step_sizes", {{"feature.conv.weight", 0.5}}}});
+    InferenceModel meta = load_inference_model(dir.file("meta.pt"));
+    EXPECT_TRUE(meta.meta_trained);
+    EXPECT_EQ(meta.adaptation.inner.steps, 3);
+    EXPECT_EQ(meta.adaptation.inner.step_size, 0.02);
+    ASSERT_EQ(meta.adaptation.step_sizes.size(), 1u);
+    EXPECT_EQ(meta.adaptation.step_sizes.begin()->second.item<double>(), 0.5);
+}
+
 }  // namespace
 }  // namespace pumeta

@@ -62,8 +62,8 @@ TEST(UpsampleCloud, SameSeedSameOutputAndModelUnchangedByAdaptation) {
     ParamMap before;
     for (auto& [name, p] : model->parameters()) before[name] = p.detach().clone();
     UpsampleOptions options;
-    options.tta_steps = 2;
-    options.meta.inner_lr = 0.01;
+    options.adaptation.inner.steps = 2;
+    options.adaptation.inner.step_size = 0.01;
     at::Tensor input = sphere_points(200, 4);
     UpsampleResult a = upsample_cloud(*model, input, options);
     UpsampleResult b = upsample_cloud(*model, input, options);
@@ -78,23 +78,23 @@ TEST(UpsampleCloud, ADivergedAdaptationFallsBackToThePlainModel) {
     at::Tensor input = sphere_points(200, 4);
     UpsampleOptions options;
     UpsampleResult plain = upsample_cloud(*model, input, options);
-    options.tta_steps = 2;
-    options.meta.inner_lr = 1e9;
-    for (const char* unit : {"object", "patch"}) {
-        options.tta_unit = unit;
+    options.adaptation.inner.steps = 2;
+    options.adaptation.inner.step_size = 1e9;
+    for (AdaptationUnit unit : {AdaptationUnit::kObject, AdaptationUnit::kPatch}) {
+        options.adaptation.unit = unit;
         UpsampleResult blown = upsample_cloud(*model, input, options);
         // (Patch units upsample one patch per pass: equal up to GEMM blocking.)
-        EXPECT_TRUE(at::allclose(blown.points, plain.points, 0, 1e-5)) << unit;
-        EXPECT_EQ(blown.loss_after, blown.loss_before) << unit;
+        EXPECT_TRUE(at::allclose(blown.points, plain.points, 0, 1e-5)) << to_string(unit);
+        EXPECT_EQ(blown.loss_after, blown.loss_before) << to_string(unit);
     }
 }
 
 TEST(UpsampleCloud, PatchUnitAdaptsEachPatch) {
     auto model = small_pugcn(4);
     UpsampleOptions options;
-    options.tta_steps = 1;
-    options.tta_unit = "patch";
-    options.meta.inner_lr = 0.01;
+    options.adaptation.inner.steps = 1;
+    options.adaptation.unit = AdaptationUnit::kPatch;
+    options.adaptation.inner.step_size = 0.01;
     UpsampleResult result = upsample_cloud(*model, sphere_points(150, 5), options);
     EXPECT_EQ(result.points.size(0), 600);
     EXPECT_TRUE(std::isfinite(result.loss_after));
@@ -106,20 +106,20 @@ TEST(UpsampleCloud, CloudUnitAdaptsOnTheDownsampledWholeCloud) {
     UpsampleOptions plain;
     UpsampleResult base = upsample_cloud(*model, input, plain);
     UpsampleOptions options;
-    options.tta_steps = 3;
-    options.meta.inner_lr = 0.05;
-    options.tta_unit = "cloud";
+    options.adaptation.inner.steps = 3;
+    options.adaptation.inner.step_size = 0.05;
+    options.adaptation.unit = AdaptationUnit::kCloud;
     UpsampleResult cloud = upsample_cloud(*model, input, options);
     EXPECT_EQ(cloud.points.size(0), 1600);
     EXPECT_LT(cloud.loss_after, cloud.loss_before);
     EXPECT_FALSE(cloud.points.equal(base.points));  // θ' differs from θ
     EXPECT_TRUE(cloud.points.equal(upsample_cloud(*model, input, options).points));
     // A different task from the object unit's (patches of X, each downsampled by r).
-    options.tta_unit = "object";
+    options.adaptation.unit = AdaptationUnit::kObject;
     UpsampleResult object = upsample_cloud(*model, input, options);
     EXPECT_GT(std::abs(object.loss_before - cloud.loss_before), 1e-6 * object.loss_before);
     // Too few points to downsample the whole cloud by r.
-    options.tta_unit = "cloud";
+    options.adaptation.unit = AdaptationUnit::kCloud;
     EXPECT_THROW(upsample_cloud(*model, sphere_points(6, 9), options), InputError);
 }
 
@@ -135,51 +135,21 @@ TEST(UpsampleCloud, TtaDownsamplerPicksTheSamplerOfXDown) {
                                 {"seed", 1}});
     at::Tensor input = sphere_points(200, 2);
     UpsampleOptions options;
-    options.tta_steps = 2;
-    options.meta.inner_lr = 0.01;
-    for (const char* unit : {"object", "cloud", "patch"}) {
-        options.tta_unit = unit;
-        options.tta_downsampler = "";
+    options.adaptation.inner.steps = 2;
+    options.adaptation.inner.step_size = 0.01;
+    for (AdaptationUnit unit :
+         {AdaptationUnit::kObject, AdaptationUnit::kCloud, AdaptationUnit::kPatch}) {
+        options.adaptation.unit = unit;
+        options.adaptation.downsampler.reset();
         UpsampleResult own = upsample_cloud(*model, input, options);
-        options.tta_downsampler = "fps";  // the backbone's own: the same X↓
+        options.adaptation.downsampler = InputSampler::kFps;  // the backbone's own: the same X↓
         UpsampleResult fps = upsample_cloud(*model, input, options);
-        EXPECT_EQ(fps.loss_before, own.loss_before) << unit;
-        EXPECT_TRUE(at::equal(fps.points, own.points)) << unit;
-        options.tta_downsampler = "random";  // another X↓
+        EXPECT_EQ(fps.loss_before, own.loss_before) << to_string(unit);
+        EXPECT_TRUE(at::equal(fps.points, own.points)) << to_string(unit);
+        options.adaptation.downsampler = InputSampler::kRandom;  // another X↓
         UpsampleResult random = upsample_cloud(*model, input, options);
-        EXPECT_NE(random.loss_before, own.loss_before) << unit;
+        EXPECT_NE(random.loss_before, own.loss_before) << to_string(unit);
     }
-    options.tta_downsampler = "poisson";
-    EXPECT_THROW(upsample_cloud(*model, input, options), InputError);
-}
-
-TEST(UpsampleCloud, OracleUnitAdaptsOnTheGroundTruthAndNeedsIt) {
-    auto model = small_pugcn(4);
-    // A scaled, shifted input: the ground truth must follow the input's frame.
-    at::Tensor input = sphere_points(300, 10) * 3.0 + 1.0;
-    at::Tensor gt = sphere_points(1200, 11) * 3.0 + 1.0;
-    UpsampleResult plain = upsample_cloud(*model, input, {});
-    UpsampleOptions options;
-    options.tta_steps = 5;
-    options.meta.inner_lr = 0.05;
-    options.tta_unit = "oracle";
-    EXPECT_THROW(upsample_cloud(*model, input, options), InputError);  // no ground truth
-    options.tta_oracle_gt = gt;
-    UpsampleResult oracle = upsample_cloud(*model, input, options);
-    EXPECT_EQ(oracle.points.size(0), 1200);
-    EXPECT_LT(oracle.loss_after, 0.9 * oracle.loss_before);
-    // Fitting the ground truth around each patch brings the whole output closer to it.
-    EXPECT_LT(chamfer_distance(oracle.points, gt), chamfer_distance(plain.points, gt));
-    // The self-supervised units never see the ground truth: the same output with or without it.
-    options.tta_unit = "object";
-    UpsampleResult object = upsample_cloud(*model, input, options);
-    options.tta_oracle_gt = at::Tensor();
-    EXPECT_TRUE(object.points.equal(upsample_cloud(*model, input, options).points));
-    // Two passes (16x with a 4x model) would need a ground truth per pass.
-    options.tta_unit = "oracle";
-    options.tta_oracle_gt = gt;
-    options.ratio = 16;
-    EXPECT_THROW(upsample_cloud(*model, input, options), InputError);
 }
 
 TEST(UpsampleCloud, RatioThatIsNotAPowerOfTheModelsIsAnInputError) {

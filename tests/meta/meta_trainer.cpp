@@ -37,8 +37,8 @@ TEST(MetaTrainConfig, ReadsNestedMetaOptionsAndRoundTrips) {
     EXPECT_DOUBLE_EQ(c.meta.inner_lr, 0.01);
     EXPECT_TRUE(c.meta.learn_inner_lr);
     EXPECT_FALSE(c.meta.first_order);
-    EXPECT_TRUE(c.meta.adapts("out.fc0.weight"));
-    EXPECT_FALSE(c.meta.adapts("head.weight"));
+    EXPECT_TRUE(c.meta.inner_loop().adapts("out.fc0.weight"));
+    EXPECT_FALSE(c.meta.inner_loop().adapts("head.weight"));
     EXPECT_EQ(c.tasks_per_batch, 4);
     EXPECT_EQ(c.steps, MetaTrainConfig().steps);
     nlohmann::json written = c.to_json();

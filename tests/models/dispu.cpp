@@ -312,7 +312,7 @@ TEST(DisPu, SecondOrderMetaGradientMatchesFiniteDifferences) {
         for (int64_t i = 0; i < 2; ++i) {
             at::Tensor xi = x.slice(0, i, i + 1), yi = y.slice(0, i, i + 1);
             at::Tensor x_down = model->downsample(xi, seed + i);
-            ParamMap fast = adapt(*model, theta, x_down, xi, options, {}, false);
+            ParamMap fast = adapt(*model, theta, x_down, xi, options.inner_loop(), {}, false);
             at::NoGradGuard no_grad;
             total += model->loss(xi, yi, fast).item<double>() / 2;
         }
@@ -352,7 +352,7 @@ TEST(DisPu, BatchNormBuffersChangeOnlyThroughUpdateBuffers) {
     MetaOptions options;
     options.inner_steps = 2;
     options.inner_lr = 1e-4;
-    adapt(model, model.parameters(), model.downsample(x, 1), x, options, {}, false);
+    adapt(model, model.parameters(), model.downsample(x, 1), x, options.inner_loop(), {}, false);
     meta_gradient(model, x, y, options, {}, 2);
     EXPECT_TRUE(same(model.buffers(), before));
 
@@ -452,8 +452,8 @@ TEST(DisPu, WholeCloudUpsamplingGivesExactlyRatioTimesInputPoints) {
     EXPECT_EQ(upsample_cloud(*x4, cloud.narrow(0, 0, 3), {}).points.size(0), 12);
     ParamMap buffers = snapshot(x4->buffers());
     UpsampleOptions tta;
-    tta.tta_steps = 2;
-    tta.meta.inner_lr = 1e-4;
+    tta.adaptation.inner.steps = 2;
+    tta.adaptation.inner.step_size = 1e-4;
     UpsampleResult adapted = upsample_cloud(*x4, cloud, tta);
     EXPECT_EQ(adapted.points.size(0), 1200);
     EXPECT_TRUE(std::isfinite(adapted.loss_after));

@@ -236,7 +236,8 @@ double meta_objective(const Backbone& model, const ParamMap& theta, const at::Te
     double total = 0;
     for (int64_t i = 0; i < x.size(0); ++i) {
         at::Tensor xi = x.slice(0, i, i + 1), yi = y.slice(0, i, i + 1);
-        ParamMap fast = adapt(model, theta, model.downsample(xi, seed + i), xi, options, {}, false);
+        ParamMap fast = adapt(model, theta, model.downsample(xi, seed + i), xi,
+                              options.inner_loop(), {}, false);
         at::NoGradGuard no_grad;
         total += model.loss(xi, yi, fast).item<double>() / double(x.size(0));
     }

@@ -54,8 +54,9 @@ nlohmann::json model_info(const std::string& path) {
                            {"parameters", count_parameters(model.backbone->parameters())},
                            {"config", model.backbone->config()},
                            {"meta_trained", model.meta_trained}};
-    if (model.meta_trained) info["meta"] = model.meta.to_json();
-    if (!model.step_sizes.empty()) info["step_sizes"] = step_sizes_to_json(model.step_sizes);
+    if (model.meta_trained) info["meta"] = MetaOptions::from_json(model.extra["meta"]).to_json();
+    if (!model.adaptation.step_sizes.empty())
+        info["step_sizes"] = step_sizes_to_json(model.adaptation.step_sizes);
     for (const char* key : {"step", "val_cd", "sampler"})
         if (model.extra.is_object() && model.extra.contains(key)) info[key] = model.extra[key];
     return info;

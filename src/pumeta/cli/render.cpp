@@ -75,6 +75,7 @@ void add_render_command(CLI::App& app) {
 #include <fstream>
 #include <random>
 
+#include "pumeta/data/layout.h"
 #include "pumeta/data/patch_set.h"
 
 namespace pumeta::cli {
@@ -115,8 +116,8 @@ void add_contact_sheet_command(CLI::App& app) {
         options.width = options.height = 256;
         std::mt19937_64 rng(args->seed);
 
-        PatchSet train = load_patch_set(
-            (fs::path(args->dataset) / fmt::format("train-x{}.tensors", args->ratio)).string());
+        PatchSet train =
+            load_patch_set(layout::patch_set_path(args->dataset, "train", args->ratio).string());
         std::vector<Image> patches;
         std::vector<std::string> labels;
         for (int i = 0; i < 16; ++i) {
@@ -130,17 +131,18 @@ void add_contact_sheet_command(CLI::App& app) {
 
         std::vector<Image> cases;
         std::vector<std::string> case_labels;
-        for (const char* set : {"test-indist", "test-scans", "test-humans", "test-aerial"}) {
-            fs::path dir =
-                fs::path(args->dataset) / "cases" / set / fmt::format("x{}", args->ratio);
-            if (!fs::exists(dir / "cases.json")) continue;
-            auto index = nlohmann::json::parse(std::ifstream(dir / "cases.json"));
+        // Not kTestSets' order: the picks of the seeded generator follow this one.
+        for (const char* set :
+             {layout::kTestIndist, layout::kTestScans, layout::kTestHumans, layout::kTestAerial}) {
+            fs::path dir = layout::cases_dir(args->dataset, set, args->ratio);
+            if (!fs::exists(layout::case_index_path(dir))) continue;
+            auto index = nlohmann::json::parse(std::ifstream(layout::case_index_path(dir)));
             auto list = index["cases"];
             for (int i = 0; i < 2 && !list.empty(); ++i) {
                 auto pick = std::uniform_int_distribution<size_t>(0, list.size() - 1)(rng);
                 fs::path c = dir / list[pick]["name"].get<std::string>();
-                at::Tensor input = read_point_cloud((c / "input.ply").string()).points;
-                at::Tensor gt = read_point_cloud((c / "gt.ply").string()).points;
+                at::Tensor input = read_point_cloud((c / layout::kInputFile).string()).points;
+                at::Tensor gt = read_point_cloud((c / layout::kGtFile).string()).points;
                 RenderOptions o = options;
                 o.frame = fit_frame(gt);
                 cases.push_back(render_image(input, o));

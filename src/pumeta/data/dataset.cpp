@@ -17,6 +17,7 @@
 #include "pumeta/core/json_fields.h"
 #include "pumeta/core/progress.h"
 #include "pumeta/core/sha256.h"
+#include "pumeta/data/layout.h"
 #include "pumeta/data/patch_set.h"
 #include "pumeta/data/shapes.h"
 #include "pumeta/data/sources.h"
@@ -192,7 +193,6 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
     std::vector<int64_t> order;  // items to process
     for (size_t i = 0; i < items.size(); ++i) order.push_back(static_cast<int64_t>(i));
 
-    fs::path cases_root = fs::path(out_dir) / "cases";
     std::mutex cases_mutex;
     std::map<std::string, std::map<int64_t, nlohmann::json>> cases;  // set -> ratio -> list
 
@@ -208,7 +208,7 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
                 for (int64_t r : config.ratios) {
                     int64_t n_in = pts.size(0) / r;
                     std::string name = case_name(id);
-                    fs::path dir = cases_root / item.split / fmt::format("x{}", r) / name;
+                    fs::path dir = layout::cases_dir(out_dir, item.split, r) / name;
                     fs::create_directories(dir);
                     at::Tensor gt = pts.index_select(
                         0,
@@ -218,8 +218,8 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
                         0,
                         random_subset(gt.size(0), n_in,
                                       derive_seed(config.seed, id + "/in/" + std::to_string(r))));
-                    write_point_cloud((dir / "input.ply").string(), {input});
-                    write_point_cloud((dir / "gt.ply").string(), {gt});
+                    write_point_cloud((dir / layout::kInputFile).string(), {input});
+                    write_point_cloud((dir / layout::kGtFile).string(), {gt});
                     nlohmann::json entry = {{"name", name},    {"id", id},
                                             {"n_in", n_in},    {"n_gt", gt.size(0)},
                                             {"mesh", nullptr}, {"gt_alt", nullptr}};
@@ -262,22 +262,22 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
             }
             // A test (or validation) object with a mesh.
             std::string name = case_name(id);
-            fs::path mesh_file = cases_root / item.split / "meshes" / (name + ".ply");
+            fs::path mesh_file = layout::case_mesh_path(out_dir, item.split, name);
             fs::create_directories(mesh_file.parent_path());
             write_mesh(mesh_file.string(), mesh);
             PointCloud input = sample_poisson_disk(mesh, config.input_points,
                                                    derive_seed(config.seed, id + "/input"));
             for (int64_t r : config.ratios) {
-                fs::path dir = cases_root / item.split / fmt::format("x{}", r) / name;
+                fs::path dir = layout::cases_dir(out_dir, item.split, r) / name;
                 fs::create_directories(dir);
                 std::string rs = std::to_string(r);
                 PointCloud gt = sample_poisson_disk(mesh, config.input_points * r,
                                                     derive_seed(config.seed, id + "/gt/" + rs));
                 PointCloud gt_alt = sample_poisson_disk(
                     mesh, config.input_points * r, derive_seed(config.seed, id + "/gt_alt/" + rs));
-                write_point_cloud((dir / "input.ply").string(), {input.points});
-                write_point_cloud((dir / "gt.ply").string(), {gt.points});
-                write_point_cloud((dir / "gt_alt.ply").string(), {gt_alt.points});
+                write_point_cloud((dir / layout::kInputFile).string(), {input.points});
+                write_point_cloud((dir / layout::kGtFile).string(), {gt.points});
+                write_point_cloud((dir / layout::kGtAltFile).string(), {gt_alt.points});
                 nlohmann::json noisy = nlohmann::json::object();
                 for (double p : config.relative_noise) {
                     std::string file = "input_rel" + noise_tag(p) + ".ply";
@@ -297,8 +297,8 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
                                         {"id", id},
                                         {"n_in", input.size()},
                                         {"n_gt", gt.size()},
-                                        {"mesh", "../../meshes/" + name + ".ply"},
-                                        {"gt_alt", "gt_alt.ply"},
+                                        {"mesh", layout::case_mesh_entry(name)},
+                                        {"gt_alt", layout::kGtAltFile},
                                         {"noisy_inputs", noisy}};
                 std::lock_guard<std::mutex> lock(cases_mutex);
                 cases[item.split][r].push_back(entry);
@@ -361,12 +361,12 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
             set.points = at::cat(points);
             set.offsets = at::tensor(offsets, at::kLong);
             set.seeds = at::cat(seeds);
-            std::string file = fmt::format("{}-x{}.tensors", split, r);
+            std::string file = layout::patch_set_file(split, r);
             save_patch_set((fs::path(out_dir) / file).string(), set);
-            counts[split][fmt::format("x{}", r)] = {{"file", file},
-                                                    {"meshes", set.num_meshes()},
-                                                    {"patches", set.num_patches()},
-                                                    {"points", set.points.size(0)}};
+            counts[split][layout::ratio_tag(r)] = {{"file", file},
+                                                   {"meshes", set.num_meshes()},
+                                                   {"patches", set.num_patches()},
+                                                   {"points", set.points.size(0)}};
         }
     }
     for (auto& [set, per_ratio] : cases) {
@@ -376,9 +376,9 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
                           return a["name"] < b["name"];
                       });
             nlohmann::json index = {{"set", set}, {"ratio", r}, {"cases", list}};
-            fs::path dir = cases_root / set / fmt::format("x{}", r);
-            std::ofstream((dir / "cases.json").string()) << index.dump(2) << "\n";
-            counts[set][fmt::format("x{}", r)]["cases"] = list.size();
+            fs::path dir = layout::cases_dir(out_dir, set, r);
+            std::ofstream(layout::case_index_path(dir).string()) << index.dump(2) << "\n";
+            counts[set][layout::ratio_tag(r)]["cases"] = list.size();
         }
     }
     manifest["counts"] = counts;
@@ -401,7 +401,7 @@ void check_split_integrity(const nlohmann::json& manifest) {
     for (const auto& [split, models] : manifest.at("splits").items()) {
         for (const nlohmann::json& m : models) {
             const std::string id = m.at("id").get<std::string>();
-            if (m.at("human").get<bool>() && split != "test-humans")
+            if (m.at("human").get<bool>() && split != layout::kTestHumans)
                 throw InternalError(fmt::format(
                     "dataset: human figure {} in split {} (only test-humans may hold one)", id,
                     split));

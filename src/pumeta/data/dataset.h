@@ -28,7 +28,8 @@ struct DatasetConfig {
     std::string raw_dir = "data/raw";
     std::vector<int64_t> ratios = {4, 8, 16};
     /// Test inputs have this many points; a training mesh's cloud has input_points·r, so a
-    /// training patch covers the same share of the surface as a test patch (reference §2).
+    /// training patch covers the same share of the surface as a test patch (docs/design.md,
+    /// "Data": patch scale matches the test protocol).
     int64_t input_points = 2048;
     /// Input points per patch (the GT patch has patch_points·r).
     int64_t patch_points = 256;

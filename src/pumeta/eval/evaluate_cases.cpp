@@ -9,12 +9,13 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
-#include <iterator>
 #include <map>
-#include <sstream>
 
 #include "pumeta/core/error.h"
 #include "pumeta/core/progress.h"
+#include "pumeta/data/layout.h"
+#include "pumeta/eval/cases_csv.h"
+#include "pumeta/eval/oracle.h"
 #include "pumeta/geometry/io.h"
 #include "pumeta/metrics/metrics.h"
 
@@ -40,47 +41,6 @@ struct Stats {
         return {{"mean", sum / n}, {"median", median}, {"count", n}};
     }
 };
-
-std::string csv_number(double v) { return std::isfinite(v) ? fmt::format("{:.9g}", v) : ""; }
-
-const char* const kCsvHeader =
-    "case,n_in,n_out,cd,hd,p2f,psnr,seconds,tta_seconds,loss_before,loss_after";
-constexpr size_t kCsvFields = 11;
-
-/// A CSV number as csv_number() writes it: empty (NaN) or a whole-field floating-point value.
-bool is_csv_number(const std::string& field) {
-    if (field.empty()) return true;
-    char* end = nullptr;
-    std::strtod(field.c_str(), &end);
-    return end == field.c_str() + field.size();
-}
-
-/// The complete rows of an interrupted run's cases.csv.tmp (a last line cut short by the
-/// interruption, or any row that does not parse, is dropped and so evaluated again): case
-/// name -> the row's fields.
-std::map<std::string, std::vector<std::string>> read_finished_rows(const fs::path& file) {
-    std::map<std::string, std::vector<std::string>> rows;
-    std::ifstream in(file);
-    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-    size_t start = text.find('\n');  // after the header
-    if (text.compare(0, start, kCsvHeader) != 0) return rows;
-    while (start != std::string::npos && start + 1 < text.size()) {
-        size_t end = text.find('\n', start + 1);
-        if (end == std::string::npos) break;  // no newline: an unfinished row
-        std::vector<std::string> fields;
-        std::stringstream row(text.substr(start + 1, end - start - 1));
-        for (std::string field; std::getline(row, field, ',');) fields.push_back(field);
-        start = end;
-        if (fields.empty() || fields.size() > kCsvFields) continue;
-        fields.resize(kCsvFields);  // getline drops trailing empty fields
-        if (std::all_of(fields.begin() + 1, fields.end(), is_csv_number)) rows[fields[0]] = fields;
-    }
-    return rows;
-}
-
-double csv_value(const std::string& field) {
-    return field.empty() ? std::nan("") : std::strtod(field.c_str(), nullptr);
-}
 
 std::string shell_quote(const std::string& text) {
     std::string quoted = "'";
@@ -121,9 +81,8 @@ at::Tensor run_external(const std::string& command_template, const at::Tensor& i
 
 }  // namespace
 
-nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* model,
-                              const EvalOptions& options, const std::string& out_dir) {
-    fs::path index_file = fs::path(cases_dir) / "cases.json";
+nlohmann::json read_case_index(const std::string& cases_dir) {
+    fs::path index_file = layout::case_index_path(cases_dir);
     if (!fs::exists(index_file))
         throw_input_error(cases_dir, "no cases.json: not a test-case directory of make-dataset");
     nlohmann::json index;
@@ -134,6 +93,15 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
     } catch (const nlohmann::json::exception& e) {  // e.g. a number beyond double's range
         throw_input_error(index_file.string(), "invalid JSON: {}", e.what());
     }
+    if (!index.is_object() || !index.contains("ratio") || !index["ratio"].is_number_integer() ||
+        index["ratio"].get<int64_t>() < 1 || !index.contains("cases") || !index["cases"].is_array())
+        throw_input_error(index_file.string(), "expected {{\"ratio\": R, \"cases\": [...]}}");
+    return index;
+}
+
+nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* model,
+                              const EvalOptions& options, const std::string& out_dir) {
+    const nlohmann::json index = read_case_index(cases_dir);
     if ((options.method == "network" || options.method == "zero-shot") && !model)
         throw_input_error("eval", "method '{}' needs --model", options.method);
     int64_t ratio = index.at("ratio");
@@ -149,17 +117,15 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
     std::vector<nlohmann::json> cases = index.at("cases").get<std::vector<nlohmann::json>>();
     if (options.max_cases > 0 && static_cast<int64_t>(cases.size()) > options.max_cases)
         cases.resize(options.max_cases);
-    fs::path csv_tmp = fs::path(out_dir) / "cases.csv.tmp";
+    fs::path csv_tmp = fs::path(out_dir) / kCasesCsvTmpFile;
     std::map<std::string, std::vector<std::string>> finished;
-    if (options.resume && fs::exists(csv_tmp)) finished = read_finished_rows(csv_tmp);
+    if (options.resume && fs::exists(csv_tmp)) finished = read_finished_rows(csv_tmp.string());
     std::ofstream csv(csv_tmp);
-    csv << kCsvHeader << "\n";
+    csv << kCasesCsvHeader << "\n";
     Stats cd, hd, p2f, psnr, seconds, tta_seconds, loss_before, loss_after;
     int64_t improved_inner = 0;
     auto add_row = [&](const std::vector<std::string>& row) {
-        csv << row[0];
-        for (size_t f = 1; f < row.size(); ++f) csv << "," << row[f];
-        csv << "\n" << std::flush;  // row by row: an interrupted run resumes after it
+        write_cases_csv_row(csv, row);  // row by row: an interrupted run resumes after it
         cd.add(csv_value(row[3]));
         hd.add(csv_value(row[4]));
         p2f.add(csv_value(row[5]));
@@ -181,14 +147,14 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
             continue;
         }
         fs::path dir = fs::path(cases_dir) / c.at("name").get<std::string>();
-        std::string input_file = "input.ply";
+        std::string input_file = layout::kInputFile;
         if (!options.noise.empty()) {
             if (!c.contains("noisy_inputs") || !c["noisy_inputs"].contains(options.noise))
                 throw_input_error(dir.string(), "no noisy input '{}'", options.noise);
             input_file = c["noisy_inputs"][options.noise];
         }
         at::Tensor input = read_point_cloud((dir / input_file).string()).points;
-        at::Tensor gt = read_point_cloud((dir / "gt.ply").string()).points;
+        at::Tensor gt = read_point_cloud((dir / layout::kGtFile).string()).points;
         TriangleMesh mesh;
         bool has_mesh = !c.value("mesh", nlohmann::json()).is_null();
         if (has_mesh) mesh = read_mesh((dir / c["mesh"].get<std::string>()).string());
@@ -196,16 +162,16 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
         UpsampleResult result;
         auto start = std::chrono::steady_clock::now();
         if (options.method == "network") {
-            UpsampleOptions per_case = upsample;
             // The diagnostic upper bound adapts on this case's ground truth (docs/design.md).
-            if (per_case.tta_unit == "oracle") per_case.tta_oracle_gt = gt;
-            result = upsample_cloud(*model, input, per_case);
+            result = options.oracle && upsample.adaptation.enabled()
+                         ? upsample_with_oracle(*model, input, gt, upsample)
+                         : upsample_cloud(*model, input, upsample);
         } else if (options.method == "zero-shot") {
             ZeroShotOptions zero_shot = options.zero_shot;
             zero_shot.seed = upsample.seed;
             ZeroShotResult trained = train_zero_shot(model->config(), input, zero_shot);
             UpsampleOptions plain = upsample;
-            plain.tta_steps = 0;
+            plain.adaptation = Adaptation();
             result = upsample_cloud(*trained.model, input, plain);
             result.seconds += trained.seconds;
             result.tta_seconds = trained.seconds;
@@ -234,7 +200,7 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         MetricReport m = evaluate(result.points, gt, has_mesh ? &mesh : nullptr);
         // Adaptation time, or the zero-shot model's training time.
-        bool trains = options.upsample.tta_steps > 0 || options.method == "zero-shot";
+        bool trains = options.upsample.adaptation.enabled() || options.method == "zero-shot";
         add_row({c["name"].get<std::string>(), std::to_string(input.size(0)),
                  std::to_string(m.n_pred), csv_number(m.cd), csv_number(m.hd),
                  csv_number(m.p2f ? *m.p2f : std::nan("")), csv_number(m.psnr),
@@ -251,7 +217,7 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
         spdlog::info("eval: {} of {} cases taken from the interrupted run in {}", resumed,
                      cases.size(), out_dir);
     csv.close();
-    fs::rename(csv_tmp, fs::path(out_dir) / "cases.csv");
+    fs::rename(csv_tmp, fs::path(out_dir) / kCasesCsvFile);
     fs::remove_all(fs::path(out_dir) / "external");
 
     nlohmann::json summary = {{"cases_dir", cases_dir},
@@ -275,17 +241,14 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
                                 {"training_seconds", tta_seconds.summary()},
                                 {"loss_first", loss_before.summary()},
                                 {"loss_last", loss_after.summary()}};
-    } else if (options.upsample.tta_steps > 0) {
-        summary["tta"] = {{"steps", options.upsample.tta_steps},
-                          {"unit", options.upsample.tta_unit},
-                          {"optimizer", options.upsample.meta.inner_optimizer},
-                          {"lr", options.upsample.step_sizes.empty()
-                                     ? nlohmann::json(options.upsample.meta.inner_lr)
-                                     : nlohmann::json("learned")},
-                          {"seconds", tta_seconds.summary()},
-                          {"loss_before", loss_before.summary()},
-                          {"loss_after", loss_after.summary()},
-                          {"inner_loss_improved", improved_inner}};
+    } else if (options.upsample.adaptation.enabled()) {
+        nlohmann::json tta = options.upsample.adaptation.to_json();
+        if (options.oracle) tta["unit"] = "oracle";
+        tta["seconds"] = tta_seconds.summary();
+        tta["loss_before"] = loss_before.summary();
+        tta["loss_after"] = loss_after.summary();
+        tta["inner_loss_improved"] = improved_inner;
+        summary["tta"] = tta;
     }
     std::ofstream(fs::path(out_dir) / "summary.json") << summary.dump(2) << "\n";
     return summary;

@@ -30,6 +30,9 @@ struct EvalOptions {
     /// ... or only those of the first N cases (figures of `pumeta report`).
     int64_t save_first = 0;
     UpsampleOptions upsample;
+    /// Adapt on each case's ground truth (eval/oracle.h): a diagnostic reference of what
+    /// upsample.adaptation's steps could gain with a perfect training signal, never a result.
+    bool oracle = false;
     /// Method "zero-shot": the test-time training budget (its seed is upsample.seed).
     ZeroShotOptions zero_shot;
     /// Recorded in the summary.
@@ -41,8 +44,13 @@ struct EvalOptions {
     bool resume = false;
 };
 
+/// The index of a cases/<set>/x<r> directory (its cases.json: {"set", "ratio", "cases"});
+/// InputError naming the file when it is missing or malformed.
+nlohmann::json read_case_index(const std::string& cases_dir);
+
 /// cases_dir: a cases/<set>/x<r> directory holding cases.json. model may be null unless the
-/// method is "network" or "zero-shot". Returns the summary (also written to out_dir/summary.json;
+/// method is "network" or "zero-shot"; it must serve the cases' ratio (options.upsample.ratio
+/// is set to it). Returns the summary (also written to out_dir/summary.json;
 /// per-case rows to out_dir/cases.csv, written row by row to out_dir/cases.csv.tmp until the
 /// last case, so that an interrupted run can resume).
 nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* model,

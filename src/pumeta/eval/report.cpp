@@ -12,6 +12,8 @@
 #include <sstream>
 
 #include "pumeta/core/error.h"
+#include "pumeta/data/layout.h"
+#include "pumeta/eval/cases_csv.h"
 #include "pumeta/geometry/io.h"
 #include "pumeta/geometry/knn.h"
 #include "pumeta/render/plot.h"
@@ -139,16 +141,6 @@ std::string markdown_to_html(const std::string& markdown) {
     return html.str();
 }
 
-std::vector<std::string> first_cases(const fs::path& csv, int64_t count) {
-    std::ifstream in(csv);
-    std::string line;
-    std::vector<std::string> names;
-    std::getline(in, line);  // header
-    while (static_cast<int64_t>(names.size()) < count && std::getline(in, line))
-        names.push_back(line.substr(0, line.find(',')));
-    return names;
-}
-
 struct Method {
     std::string label;
     fs::path run;  // the run directory of this set
@@ -214,11 +206,11 @@ ReportSummary write_report(const std::string& results_dir, const std::string& ou
     for (const std::string& set : config.at("sets").get<std::vector<std::string>>()) {
         std::vector<Method> methods = table1_methods(tables, results, set);
         if (methods.empty()) continue;
-        fs::path cases_dir =
-            fs::path(tables.value("dataset_path", config.at("dataset_dir").get<std::string>())) /
-            "cases" / set / ("x" + std::to_string(ratio));
-        for (const std::string& name : first_cases(methods.front().run / "cases.csv", per_set)) {
-            fs::path gt_file = cases_dir / name / "gt.ply";
+        fs::path cases_dir = layout::cases_dir(
+            tables.value("dataset_path", config.at("dataset_dir").get<std::string>()), set, ratio);
+        for (const std::string& name :
+             first_case_names((methods.front().run / kCasesCsvFile).string(), per_set)) {
+            fs::path gt_file = cases_dir / name / layout::kGtFile;
             if (!fs::exists(gt_file)) {
                 spdlog::warn("report: {} not found: no figure for {}", gt_file.string(), name);
                 continue;

@@ -1,4 +1,5 @@
-// The two noise protocols of the reference (§3).
+// The two noise protocols of the noisy test inputs (docs/data.md, "Test cases"): relative
+// (a percentage of the cloud's spread) and absolute (a fixed sigma).
 #pragma once
 
 #include <ATen/core/Tensor.h>

@@ -1,6 +1,6 @@
 // Cutting a cloud into overlapping local patches (seed + k nearest neighbours), each
-// normalised to the unit sphere on its own, and mapping results back (reference §2,
-// "Whole-cloud inference").
+// normalised to the unit sphere on its own, and mapping results back (docs/design.md,
+// "Inference": the patch pipeline).
 #pragma once
 
 #include <ATen/core/Tensor.h>

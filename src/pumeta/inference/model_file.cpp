@@ -5,6 +5,7 @@
 #include <cstdlib>
 #include <filesystem>
 
+#include "pumeta/inference/upsample.h"
 #include "pumeta/models/checkpoint.h"
 
 namespace pumeta {
@@ -34,22 +35,20 @@ InferenceModel load_inference_model(const std::string& path, int64_t ratio) {
     InferenceModel model;
     model.backbone = at_ratio(std::move(checkpoint.backbone), ratio);
     model.extra = checkpoint.extra;
-    if (model.extra.is_object() && model.extra.contains("meta")) {
-        model.meta_trained = true;
-        model.meta = MetaOptions::from_json(model.extra["meta"]);
-        if (model.extra.contains("step_sizes"))
-            model.step_sizes = step_sizes_from_json(model.extra["step_sizes"]);
-    }
+    const bool has = model.extra.is_object() && model.extra.contains("meta");
+    model.meta_trained = has;
+    model.adaptation = stored_adaptation(
+        has ? model.extra["meta"] : nlohmann::json(),
+        has ? model.extra.value("step_sizes", nlohmann::json()) : nlohmann::json());
     return model;
 }
 
-void set_adaptation(UpsampleOptions& options, const InferenceModel& model, double inner_lr) {
-    options.meta = model.meta;
-    options.step_sizes = model.step_sizes;
-    if (inner_lr >= 0) {
-        options.meta.inner_lr = inner_lr;
-        options.step_sizes.clear();
-    }
+ServedModel serve(const std::string& path, int64_t ratio) {
+    ServedModel served;
+    served.model =
+        load_inference_model(path.empty() ? default_model_for_ratio(ratio) : path, ratio);
+    served.ratio = output_ratio(*served.model.backbone, ratio);
+    return served;
 }
 
 std::string default_model_path(const std::string& name) {

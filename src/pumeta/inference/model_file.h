@@ -1,23 +1,22 @@
-// Loading a model for inference: a pretrained or meta-trained checkpoint, with the meta
-// options a meta-trained one carries.
+// Loading a model for inference: a pretrained or meta-trained checkpoint, with the adaptation
+// defaults a meta-trained one carries, and the choice of the model that serves a ratio.
 #pragma once
 
 #include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "pumeta/inference/upsample.h"
-#include "pumeta/meta/maml.h"
+#include "pumeta/inference/adaptation.h"
 #include "pumeta/models/backbone.h"
 
 namespace pumeta {
 
 struct InferenceModel {
     std::unique_ptr<Backbone> backbone;
-    /// Meta-trained: the inner-loop settings it was meta-trained with.
+    /// Meta-trained: its file stores the inner-loop settings it was meta-trained with.
     bool meta_trained = false;
-    MetaOptions meta;
-    StepSizes step_sizes;
+    /// The file's adaptation defaults (stored_adaptation(): none for a plain model).
+    Adaptation adaptation;
     nlohmann::json extra;
 };
 
@@ -26,9 +25,20 @@ struct InferenceModel {
 /// backbones keep their own ratio (the pipeline applies them repeatedly or names the problem).
 InferenceModel load_inference_model(const std::string& path, int64_t ratio = 0);
 
-/// Adaptation settings of `model` in `options` (meta options and learned step sizes), or, when
-/// inner_lr >= 0, one plain step size in place of the learned ones. tta_steps is left alone.
-void set_adaptation(UpsampleOptions& options, const InferenceModel& model, double inner_lr = -1);
+/// The output ratio when neither the user nor a model file says: the shipped default model's.
+inline constexpr int64_t kDefaultRatio = 4;
+
+/// A model and the output ratio it serves.
+struct ServedModel {
+    InferenceModel model;
+    int64_t ratio = 0;
+};
+
+/// The one place that decides which model serves which output ratio: `path`, or when empty the
+/// shipped PU-GCN for `ratio` (default_model_for_ratio); `ratio` 0 means the model's own. The
+/// model is rebuilt at the ratio when its weights serve any ratio; otherwise the ratio must be
+/// a power of the model's (applied repeatedly), else an InputError naming both.
+ServedModel serve(const std::string& path, int64_t ratio);
 
 /// The shipped model used when --model is not given: $PUMETA_MODELS/<name> if set, else the
 /// source tree's models/<name>.

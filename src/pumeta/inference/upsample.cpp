@@ -13,7 +13,6 @@
 #include "pumeta/core/tensor_checks.h"
 #include "pumeta/core/threads.h"
 #include "pumeta/geometry/knn.h"
-#include "pumeta/geometry/normalize.h"
 #include "pumeta/geometry/patches.h"
 #include "pumeta/geometry/sampling.h"
 #include "pumeta/models/downsample.h"
@@ -60,34 +59,30 @@ at::Tensor merge_by_ownership(const at::Tensor& cloud, const Patches& patches,
     return flat.index({keep});
 }
 
-/// The self-supervised pair of the "cloud" unit: X↓ = the backbone's downsampler on the whole
-/// cloud (N/r points), cut into patches of the network's size; each is paired with the
+/// X↓ of dense [B,M,3]: the adaptation's sampler's M/r points, else the backbone's own.
+at::Tensor downsample_for_adaptation(const Backbone& model, const at::Tensor& dense,
+                                     const Adaptation& adaptation, uint64_t seed) {
+    if (!adaptation.downsampler) return model.downsample(dense, seed);
+    return downsample_points(dense, std::max<int64_t>(1, dense.size(1) / model.ratio()),
+                             to_string(*adaptation.downsampler), seed);
+}
+
+/// The self-supervised pairs of the "cloud" unit: X↓ = the downsampler on the whole cloud
+/// (N/r points), cut into patches of the network's size; each is paired with the
 /// patch_size·r points of X nearest to its seed, both normalised by that target's centroid
 /// and radius (as training pairs are). The network thus adapts on inputs of its usual size
 /// and density relative to the patch, one scale coarser, where the "object" unit feeds it
 /// patch_size/r-point downsamples of its 256-point patches.
-struct AdaptationPairs {
-    at::Tensor input;   ///< [P, n, 3]
-    at::Tensor target;  ///< [P, n·r, 3] (fewer when X is smaller)
-};
-
-/// X↓ of dense [B,M,3]: options.tta_downsampler's M/r points, else the backbone's own.
-at::Tensor downsample_for_adaptation(const Backbone& model, const at::Tensor& dense,
-                                     const UpsampleOptions& options, uint64_t seed) {
-    if (options.tta_downsampler.empty()) return model.downsample(dense, seed);
-    return downsample_points(dense, std::max<int64_t>(1, dense.size(1) / model.ratio()),
-                             options.tta_downsampler, seed);
-}
-
 AdaptationPairs cloud_scale_pairs(const Backbone& model, const at::Tensor& cloud,
-                                  const PatchOptions& patch_options, const UpsampleOptions& options,
+                                  const PatchOptions& patch_options, const Adaptation& adaptation,
                                   uint64_t seed) {
     const int64_t r = model.ratio();
     if (cloud.size(0) / r < 2)
         throw_input_error("--tta-unit cloud", "{} points are too few to downsample by {}",
                           cloud.size(0), r);
-    at::Tensor down =
-        downsample_for_adaptation(model, cloud.unsqueeze(0), options, seed).squeeze(0).contiguous();
+    at::Tensor down = downsample_for_adaptation(model, cloud.unsqueeze(0), adaptation, seed)
+                          .squeeze(0)
+                          .contiguous();
     Patches patches = extract_patches(down, patch_options);
     const int64_t n = patches.points.size(1);
     const int64_t m = std::min(n * r, cloud.size(0));
@@ -100,19 +95,9 @@ AdaptationPairs cloud_scale_pairs(const Backbone& model, const at::Tensor& cloud
     return {(input - center) / scale, (target - center) / scale};
 }
 
-/// The "oracle" unit's pairs: each patch of X as the network sees it, with the patch_size·r
-/// ground-truth points nearest to its seed in the same patch frame as target.
-AdaptationPairs oracle_pairs(const Backbone& model, const at::Tensor& cloud, const Patches& patches,
-                             const at::Tensor& gt) {
-    const int64_t m = std::min(patches.points.size(1) * model.ratio(), gt.size(0));
-    at::Tensor seeds = cloud.index_select(0, patches.seeds);
-    at::Tensor target = gt.index_select(0, knn(gt, seeds, m).indices.flatten()).view({-1, m, 3});
-    target = (target - patches.centers.unsqueeze(1)) / patches.scales.view({-1, 1, 1});
-    return {patches.points, target};
-}
-
 at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
-                         const UpsampleOptions& options, UpsampleResult& result) {
+                         const UpsampleOptions& options, const Normalization& frame,
+                         const PairSource& pair_source, UpsampleResult& result) {
     int64_t r = model.ratio();
     PatchOptions patch_options;
     patch_options.patch_size = model.patch_size();
@@ -122,17 +107,16 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
     result.patches += num_patches;
 
     // Test-time adaptation (Algorithm 2): θ' from N steps on L(F_θ(X↓), X).
+    const Adaptation& adaptation = options.adaptation;
     ParamMap object_params = model.parameters();
-    MetaOptions meta = options.meta;
-    meta.inner_steps = options.tta_steps;
     auto tta_start = Clock::now();
     // Adaptation runs on one thread (core/threads.h): its gradients then have the same bits
     // whatever the thread count.
     auto adapt_pairs = [&](const at::Tensor& input, const at::Tensor& target) {
         ThreadCountGuard one_thread(1);
         std::vector<double> losses;
-        ParamMap adapted = adapt(model, model.parameters(), input, target, meta, options.step_sizes,
-                                 /*create_graph=*/false, &losses);
+        ParamMap adapted = adapt(model, model.parameters(), input, target, adaptation.inner,
+                                 adaptation.step_sizes, /*create_graph=*/false, &losses);
         // A diverged adaptation (as meta-training drops, kDivergedInnerLoss) would return
         // garbage: keep θ and say so.
         if (!std::isfinite(losses.back()) || losses.back() > kDivergedInnerLoss * losses.front()) {
@@ -146,25 +130,23 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
         return std::make_pair(adapted, losses);
     };
     auto adapt_on = [&](const at::Tensor& x, uint64_t seed) {
-        return adapt_pairs(downsample_for_adaptation(model, x, options, seed), x);
+        return adapt_pairs(downsample_for_adaptation(model, x, adaptation, seed), x);
     };
-    // The one-θ' units adapt on at most tta_max_patches pairs (a seeded subset).
+    // The one-θ' units adapt on at most max_patches pairs (a seeded subset).
     auto subset = [&](int64_t rows) {
-        return rows <= options.tta_max_patches
+        return rows <= adaptation.max_patches
                    ? at::arange(rows, at::kLong)
-                   : random_subset(rows, options.tta_max_patches, options.seed);
+                   : random_subset(rows, adaptation.max_patches, options.seed);
     };
-    const bool one_theta =
-        options.tta_unit == "object" || options.tta_unit == "cloud" || options.tta_unit == "oracle";
-    if (options.tta_steps > 0 && one_theta) {
+    const bool per_patch = adaptation.unit == AdaptationUnit::kPatch && !pair_source;
+    if (adaptation.enabled() && !per_patch) {
         std::pair<ParamMap, std::vector<double>> adapted;
-        if (options.tta_unit == "object") {
+        if (adaptation.unit == AdaptationUnit::kObject && !pair_source) {
             adapted = adapt_on(patches.points.index_select(0, subset(num_patches)), options.seed);
         } else {
-            AdaptationPairs pairs =
-                options.tta_unit == "cloud"
-                    ? cloud_scale_pairs(model, cloud, patch_options, options, options.seed)
-                    : oracle_pairs(model, cloud, patches, options.tta_oracle_gt);
+            AdaptationPairs pairs = pair_source ? pair_source(cloud, patches, frame)
+                                                : cloud_scale_pairs(model, cloud, patch_options,
+                                                                    adaptation, options.seed);
             at::Tensor rows = subset(pairs.input.size(0));
             adapted =
                 adapt_pairs(pairs.input.index_select(0, rows), pairs.target.index_select(0, rows));
@@ -172,9 +154,6 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
         object_params = std::move(adapted.first);
         result.loss_before = adapted.second.front();
         result.loss_after = adapted.second.back();
-    } else if (options.tta_steps > 0 && options.tta_unit != "patch") {
-        throw_input_error("--tta-unit", "expected object, patch, cloud or oracle, found '{}'",
-                          options.tta_unit);
     }
     result.tta_seconds += seconds_since(tta_start);
 
@@ -192,7 +171,7 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
         if (progress) progress->update(start, fmt::format("{} patches", num_patches));
         int64_t end = std::min(num_patches, start + batch);
         at::Tensor chunk = patches.points.slice(0, start, end);
-        if (options.tta_steps > 0 && options.tta_unit == "patch") {
+        if (adaptation.enabled() && per_patch) {
             for (int64_t i = 0; i < chunk.size(0); ++i) {
                 at::Tensor x = chunk.slice(0, i, i + 1);
                 auto t0 = Clock::now();
@@ -210,7 +189,7 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
     }
     one_thread.reset();
     if (progress) progress->finish();
-    if (options.tta_steps > 0 && options.tta_unit == "patch") {
+    if (adaptation.enabled() && per_patch) {
         result.loss_before = before_sum / num_patches;
         result.loss_after = after_sum / num_patches;
     }
@@ -227,37 +206,30 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
 
 }  // namespace
 
-UpsampleResult upsample_cloud(const Backbone& model, const at::Tensor& points,
-                              const UpsampleOptions& options) {
-    check_points(points, "upsample input", 1);
-    if (!options.tta_downsampler.empty())
-        check_downsampler(options.tta_downsampler, "--tta-downsampler");
-    auto start = Clock::now();
-    int64_t ratio = options.ratio == 0 ? model.ratio() : options.ratio;
-    int64_t passes = 0;
-    for (int64_t r = 1; r < ratio; r *= model.ratio()) ++passes;
-    if (static_cast<int64_t>(std::pow(model.ratio(), passes)) != ratio)
+int64_t output_ratio(const Backbone& model, int64_t requested) {
+    const int64_t ratio = requested == 0 ? model.ratio() : requested;
+    int64_t power = 1;
+    while (power < ratio) power *= model.ratio();
+    if (power != ratio)
         throw_input_error("--ratio", "ratio {} is not a power of the model's ratio {}", ratio,
                           model.ratio());
+    return ratio;
+}
+
+UpsampleResult upsample_cloud(const Backbone& model, const at::Tensor& points,
+                              const UpsampleOptions& options, const PairSource& pairs) {
+    check_points(points, "upsample input", 1);
+    auto start = Clock::now();
+    const int64_t ratio = output_ratio(model, options.ratio);
     UpsampleResult result;
     result.n_in = points.size(0);
     Normalization frame = unit_sphere_normalization(points);
     at::Tensor cloud = frame.apply(points).contiguous();
-    UpsampleOptions framed = options;
-    if (options.tta_steps > 0 && options.tta_unit == "oracle") {
-        if (!options.tta_oracle_gt.defined())
-            throw_input_error("--tta-unit",
-                              "oracle adaptation needs the ground truth (pumeta eval)");
-        if (passes != 1)
-            throw_input_error("--tta-unit", "oracle adaptation needs a single pass (ratio {})",
-                              model.ratio());
-        check_points(options.tta_oracle_gt, "oracle ground truth", 1);
-        framed.tta_oracle_gt = frame.apply(options.tta_oracle_gt).contiguous();
-    }
-    for (int64_t pass = 0; pass < passes; ++pass) {
-        UpsampleOptions pass_options = framed;
+    int64_t pass = 0;
+    for (int64_t done = 1; done < ratio; done *= model.ratio(), ++pass) {
+        UpsampleOptions pass_options = options;
         pass_options.seed = options.seed + 7919 * pass;
-        cloud = upsample_once(model, cloud, pass_options, result).contiguous();
+        cloud = upsample_once(model, cloud, pass_options, frame, pairs, result).contiguous();
     }
     result.points = frame.invert(cloud);
     result.seconds = seconds_since(start);

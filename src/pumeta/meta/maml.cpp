@@ -24,15 +24,42 @@ void visit_fields(Self& o, Visit&& visit) {
     visit("first_order", o.first_order);
     visit("learn_inner_lr", o.learn_inner_lr);
     visit("adapt", o.adapt);
-    visit("outer_objective", o.outer_objective);
-    visit("inner_optimizer", o.inner_optimizer);
+}
+
+/// Removes a field of older model files whose only accepted value is the one pumeta keeps.
+void drop_legacy_field(nlohmann::json& j, const char* key, const char* kept) {
+    if (!j.is_object() || !j.contains(key)) return;
+    if (j[key] != kept)
+        throw_input_error("meta config", "{} '{}' is no longer supported (only \"{}\")", key,
+                          j[key].dump(), kept);
+    j.erase(key);
 }
 
 }  // namespace
 
+InnerOptimizer parse_inner_optimizer(const std::string& name, const std::string& context) {
+    if (name == "sgd") return InnerOptimizer::kSgd;
+    if (name == "adam") return InnerOptimizer::kAdam;
+    throw_input_error(context, "expected sgd or adam, found '{}'", name);
+}
+
+std::string to_string(InnerOptimizer optimizer) {
+    return optimizer == InnerOptimizer::kAdam ? "adam" : "sgd";
+}
+
+bool InnerLoop::adapts(const std::string& name) const {
+    if (adapt.empty()) return true;
+    for (const std::string& prefix : adapt)
+        if (name.rfind(prefix, 0) == 0) return true;
+    return false;
+}
+
 MetaOptions MetaOptions::from_json(const nlohmann::json& j) {
+    nlohmann::json current = j;
+    drop_legacy_field(current, "outer_objective", "loss");
+    drop_legacy_field(current, "inner_optimizer", "sgd");
     MetaOptions o;
-    read_fields(j, "meta config", [&](auto&& visit) { visit_fields(o, visit); });
+    read_fields(current, "meta config", [&](auto&& visit) { visit_fields(o, visit); });
     o.check();
     return o;
 }
@@ -40,29 +67,26 @@ MetaOptions MetaOptions::from_json(const nlohmann::json& j) {
 void MetaOptions::check() const {
     if (inner_steps < 0) throw_input_error("meta config", "inner_steps must be >= 0");
     if (inner_lr < 0) throw_input_error("meta config", "inner_lr must be >= 0");
-    if (outer_objective != "loss" && outer_objective != "gain")
-        throw_input_error("meta config", "outer_objective must be \"loss\" or \"gain\", found '{}'",
-                          outer_objective);
-    if (inner_optimizer != "sgd" && inner_optimizer != "adam")
-        throw_input_error("meta config", "inner_optimizer must be \"sgd\" or \"adam\", found '{}'",
-                          inner_optimizer);
 }
 
 nlohmann::json MetaOptions::to_json() const {
     return write_fields([&](auto&& visit) { visit_fields(*this, visit); });
 }
 
-bool MetaOptions::adapts(const std::string& name) const {
-    if (adapt.empty()) return true;
-    for (const std::string& prefix : adapt)
-        if (name.rfind(prefix, 0) == 0) return true;
-    return false;
+InnerLoop MetaOptions::inner_loop() const {
+    InnerLoop loop;
+    loop.steps = inner_steps;
+    loop.step_size = inner_lr;
+    loop.adapt = adapt;
+    loop.first_order = first_order;
+    return loop;
 }
 
 StepSizes make_step_sizes(const Backbone& model, const MetaOptions& options) {
+    const InnerLoop loop = options.inner_loop();
     StepSizes sizes;
     for (const auto& [name, p] : model.parameters())
-        if (options.adapts(name))
+        if (loop.adapts(name))
             sizes[name] = at::full({}, options.inner_lr, p.options()).set_requires_grad(true);
     return sizes;
 }
@@ -81,13 +105,15 @@ StepSizes step_sizes_from_json(const nlohmann::json& j) {
 }
 
 ParamMap adapt(const Backbone& model, const ParamMap& params, const at::Tensor& x_down,
-               const at::Tensor& x, const MetaOptions& options, const StepSizes& step_sizes,
+               const at::Tensor& x, const InnerLoop& loop, const StepSizes& step_sizes,
                bool create_graph, std::vector<double>* losses) {
-    options.check();
-    const bool adam = options.inner_optimizer == "adam";
+    if (loop.steps < 0 || !(loop.step_size >= 0))
+        throw_input_error("inner loop", "steps ({}) and step size ({}) must be >= 0", loop.steps,
+                          loop.step_size);
+    const bool adam = loop.optimizer == InnerOptimizer::kAdam;
     if (adam && create_graph)
-        throw_input_error("meta config",
-                          "inner_optimizer \"adam\" is for test-time adaptation only, not for "
+        throw_input_error("inner loop",
+                          "Adam inner steps are for test-time adaptation only, not for "
                           "meta-training");
     if (adam && !step_sizes.empty())
         throw_input_error("--tta-optimizer",
@@ -96,7 +122,7 @@ ParamMap adapt(const Backbone& model, const ParamMap& params, const at::Tensor& 
     ParamMap fast = params;
     ParamMap adapting;
     for (const auto& [name, p] : fast)
-        if (options.adapts(name)) adapting[name] = p;
+        if (loop.adapts(name)) adapting[name] = p;
     if (!create_graph) {
         // Test-time adaptation: fresh leaves, so no graph reaches back to the stored model, and
         // copies for the adapting ones, which Adam updates in place.
@@ -105,14 +131,14 @@ ParamMap adapt(const Backbone& model, const ParamMap& params, const at::Tensor& 
     }
     // Adam (fresh moments) updates the leaves in place; fast holds the same tensors.
     std::optional<Adam> optimizer;
-    if (adam) optimizer.emplace(adapting, AdamOptions{options.inner_lr});
-    for (int64_t s = 0; s <= options.inner_steps; ++s) {
-        bool last = s == options.inner_steps;
+    if (adam) optimizer.emplace(adapting, AdamOptions{loop.step_size});
+    for (int64_t s = 0; s <= loop.steps; ++s) {
+        bool last = s == loop.steps;
         if (last && !losses) break;
         at::Tensor loss = model.loss(x_down, x, fast);
         if (losses) losses->push_back(loss.item<double>());
         if (last) break;
-        ParamMap grads = gradients(loss, adapting, create_graph && !options.first_order);
+        ParamMap grads = gradients(loss, adapting, create_graph && !loop.first_order);
         if (optimizer) {
             optimizer->step(grads);
             continue;
@@ -121,7 +147,7 @@ ParamMap adapt(const Backbone& model, const ParamMap& params, const at::Tensor& 
             at::Tensor g = grads.at(name);
             auto alpha = step_sizes.find(name);
             at::Tensor next =
-                alpha != step_sizes.end() ? p - alpha->second * g : p - options.inner_lr * g;
+                alpha != step_sizes.end() ? p - alpha->second * g : p - loop.step_size * g;
             if (!create_graph) next = next.detach().requires_grad_(true);
             p = next;
             fast[name] = next;
@@ -132,42 +158,11 @@ ParamMap adapt(const Backbone& model, const ParamMap& params, const at::Tensor& 
     return fast;
 }
 
-std::vector<double> first_step_alignment(const Backbone& model, const ParamMap& params,
-                                         const at::Tensor& x_down, const at::Tensor& x,
-                                         const std::vector<SupervisedPair>& supervised,
-                                         const MetaOptions& options, const StepSizes& step_sizes) {
-    ParamMap fast, adapting;
-    for (const auto& [name, p] : params) {
-        fast[name] = p.detach();
-        if (options.adapts(name)) adapting[name] = fast[name].requires_grad_(true);
-    }
-    // The first update: α ⊙ g for SGD; Adam's first bias-corrected step is α g / (|g| + ε).
-    ParamMap update = gradients(model.loss(x_down, x, fast), adapting);
-    for (auto& [name, g] : update) {
-        if (options.inner_optimizer == "adam") g = g / (g.abs() + AdamOptions{}.eps);
-        auto alpha = step_sizes.find(name);
-        g = g *
-            (alpha != step_sizes.end() ? alpha->second.detach().item<double>() : options.inner_lr);
-    }
-    double update_norm = 0;
-    for (const auto& [name, u] : update) update_norm += u.square().sum().item<double>();
-    std::vector<double> cosines;
-    for (const SupervisedPair& pair : supervised) {
-        ParamMap h = gradients(model.loss(pair.input, pair.target, fast), adapting);
-        double dot = 0, norm = 0;
-        for (const auto& [name, u] : update) {
-            dot += (u * h.at(name)).sum().item<double>();
-            norm += h.at(name).square().sum().item<double>();
-        }
-        cosines.push_back(update_norm == 0 || norm == 0 ? 0 : dot / std::sqrt(update_norm * norm));
-    }
-    return cosines;
-}
-
 MetaStepResult meta_gradient(const Backbone& model, const at::Tensor& x, const at::Tensor& y,
                              const MetaOptions& options, const StepSizes& step_sizes, uint64_t seed,
                              int64_t step) {
     options.check();
+    const InnerLoop loop = options.inner_loop();
     const ParamMap& theta = model.parameters();
     int64_t tasks = x.size(0);
     MetaStepResult result;
@@ -181,7 +176,7 @@ MetaStepResult meta_gradient(const Backbone& model, const at::Tensor& x, const a
         at::Tensor yn = y.slice(0, n, n + 1);
         at::Tensor x_down = model.downsample(xn, seed + static_cast<uint64_t>(n));
         std::vector<double> inner;
-        ParamMap fast = adapt(model, theta, x_down, xn, options, step_sizes,
+        ParamMap fast = adapt(model, theta, x_down, xn, loop, step_sizes,
                               /*create_graph=*/true, &inner);
         const bool diverged = std::any_of(inner.begin(), inner.end(), [&](double v) {
             return !std::isfinite(v) || v > kDivergedInnerLoss * inner.front();
@@ -193,18 +188,13 @@ MetaStepResult meta_gradient(const Backbone& model, const at::Tensor& x, const a
             continue;
         }
         at::Tensor outer = model.loss(xn, yn, fast, step);
-        at::Tensor objective = outer;
-        if (options.outer_objective == "gain") {
-            at::Tensor unadapted = model.loss(xn, yn, theta, step);
-            outer_before += unadapted.item<double>();
-            objective = outer - unadapted;
-        } else {
+        {
             at::NoGradGuard no_grad;
             outer_before += model.loss(xn, yn, theta, step).item<double>();
         }
         ParamMap wrt = theta;
         for (const auto& [name, a] : step_sizes) wrt["alpha/" + name] = a;
-        ParamMap grads = gradients(objective, wrt);
+        ParamMap grads = gradients(outer, wrt);
         for (auto& [name, g] : grads) {
             if (name.rfind("alpha/", 0) == 0)
                 result.step_size_grads[name.substr(6)] += g;

@@ -3,8 +3,7 @@
 //
 // Task n: a training pair (X_n, Y_n). Inner loop (adaptation): N steps of
 //   θ_n ← θ_n − α ⊙ ∇ L(F_θn(X_n↓), X_n),   X_n↓ = backbone.downsample(X_n)
-// Outer loss: mean_n L(F_θn(X_n), Y_n) (or, as an investigation, what adaptation gains:
-// MetaOptions::outer_objective), differentiated w.r.t. the original θ (and α with
+// Outer loss: mean_n L(F_θn(X_n), Y_n), differentiated w.r.t. the original θ (and α with
 // Meta-SGD). Second-order by default: the inner gradients stay in the graph.
 #pragma once
 
@@ -20,6 +19,31 @@
 
 namespace pumeta {
 
+/// The inner steps' optimiser: the paper's plain gradient steps θ ← θ − α ⊙ ∇L, or Adam
+/// (learning rate α, fresh moments per adaptation), which only test-time adaptation offers.
+enum class InnerOptimizer { kSgd, kAdam };
+/// "sgd" or "adam"; InputError naming `context` otherwise.
+InnerOptimizer parse_inner_optimizer(const std::string& name, const std::string& context);
+std::string to_string(InnerOptimizer optimizer);
+
+/// One run of the inner loop (adapt()): how many steps, how large, on which parameters.
+struct InnerLoop {
+    /// N: gradient steps.
+    int64_t steps = 5;
+    /// α for every adapting parameter without a per-tensor step size.
+    double step_size = 1e-5;
+    /// Name prefixes of the parameters that adapt (e.g. "upsample."); empty = all.
+    std::vector<std::string> adapt;
+    /// FOMAML: with create_graph, the inner gradients are constants of the outer gradient.
+    bool first_order = false;
+    InnerOptimizer optimizer = InnerOptimizer::kSgd;
+
+    /// Whether parameter `name` adapts.
+    bool adapts(const std::string& name) const;
+};
+
+/// Meta-training's settings of the inner loop, stored in the JSON of every meta-trained model
+/// (its defaults for test-time adaptation).
 struct MetaOptions {
     /// N: inner gradient steps (paper: 5).
     int64_t inner_steps = 5;
@@ -34,24 +58,16 @@ struct MetaOptions {
     bool learn_inner_lr = false;
     /// Name prefixes of the parameters that adapt (e.g. "upsample."); empty = all.
     std::vector<std::string> adapt;
-    /// What the outer step minimises per task: "loss" = L(F_θn(X_n), Y_n), Algorithm 1;
-    /// "gain" = L(F_θn(X_n), Y_n) − L(F_θ(X_n), Y_n), what adaptation adds. Algorithm 1's
-    /// gradient is ∇L(θ) (more supervised training) plus O(α) terms that make the inner step
-    /// useful; "gain" keeps only the latter (docs/design.md). An investigation, not the paper.
-    std::string outer_objective = "loss";
-    /// The inner steps' optimiser: "sgd" (the paper's θ ← θ − α∇L) or "adam" (Adam with
-    /// learning rate inner_lr, fresh moments per adaptation, no per-tensor step sizes), for
-    /// test-time adaptation only: meta-training refuses it. A diagnostic of whether plain
-    /// gradient steps are what limits adaptation (docs/design.md).
-    std::string inner_optimizer = "sgd";
 
+    /// Models meta-trained before these settings were reduced to the paper's also carry
+    /// "outer_objective": "loss" and "inner_optimizer": "sgd", which are accepted; any other
+    /// value of them is an InputError.
     static MetaOptions from_json(const nlohmann::json& j);
-    /// InputError naming the field for a negative count or step size or an unknown
-    /// outer_objective / inner_optimizer (adapt() and meta_gradient() check too).
+    /// InputError naming the field for a negative count or step size.
     void check() const;
     nlohmann::json to_json() const;
-    /// Whether parameter `name` adapts in the inner loop.
-    bool adapts(const std::string& name) const;
+    /// The inner loop these settings describe (plain SGD steps).
+    InnerLoop inner_loop() const;
 };
 
 /// Per-tensor inner step sizes (Meta-SGD): 0-dim tensors named like the parameters they
@@ -66,38 +82,25 @@ StepSizes make_step_sizes(const Backbone& model, const MetaOptions& options);
 nlohmann::json step_sizes_to_json(const StepSizes& sizes);
 StepSizes step_sizes_from_json(const nlohmann::json& j);
 
-/// The inner loop: returns θ' after options.inner_steps steps on the self-supervised loss
-/// L(F_θ(x_down), x). With create_graph, θ' is a differentiable function of `params` (and of
-/// `step_sizes`); otherwise each step is detached (test-time adaptation). When `losses` is
-/// given it receives the inner loss before each step and after the last (N + 1 values).
+/// The inner loop: returns θ' after loop.steps steps on the self-supervised loss
+/// L(F_θ(x_down), x), with x_down float32 [B,n,3] and x [B,n·r,3] (a batch of pairs adapts one
+/// θ'). Each adapting tensor steps by its entry of `step_sizes` (a 0-dim tensor) or else by
+/// loop.step_size. With create_graph, θ' is a differentiable function of `params` (and of
+/// `step_sizes`), for MAML's outer gradient; otherwise each step is detached (test-time
+/// adaptation) and the returned tensors are leaves that share nothing with `params`' graph.
+/// When `losses` is given it receives the inner loss before each step and after the last
+/// (N + 1 values). InputError for Adam with create_graph or with per-tensor step sizes.
 ParamMap adapt(const Backbone& model, const ParamMap& params, const at::Tensor& x_down,
-               const at::Tensor& x, const MetaOptions& options, const StepSizes& step_sizes,
+               const at::Tensor& x, const InnerLoop& loop, const StepSizes& step_sizes,
                bool create_graph, std::vector<double>* losses = nullptr);
-
-/// A supervised pair (X, Y) for first_step_alignment(): input [1,n,3], target [1,rn,3].
-struct SupervisedPair {
-    at::Tensor input, target;
-};
-
-/// Whether the first inner step points downhill on supervised tasks: for each pair, the
-/// cosine between the first inner update (α ⊙ ∇L(F_θ(x_down), x) for SGD, α per tensor from
-/// step_sizes, else inner_lr; Adam's first step α ∇L / (|∇L| + ε) with inner_optimizer
-/// "adam") and ∇L(F_θ(X), Y), over the adapting parameters. Positive: a small first step
-/// lowers that pair's supervised loss (to first order). With x's own pair it says whether the
-/// self-supervised step carries information about x → y; with another input's pair, how much
-/// of that any input's step would give (docs/design.md). No graph is kept.
-std::vector<double> first_step_alignment(const Backbone& model, const ParamMap& params,
-                                         const at::Tensor& x_down, const at::Tensor& x,
-                                         const std::vector<SupervisedPair>& supervised,
-                                         const MetaOptions& options, const StepSizes& step_sizes);
 
 struct MetaStepResult {
     double outer_loss = 0;         ///< mean over tasks of L(F_θn(X_n), Y_n)
     double outer_loss_before = 0;  ///< mean over tasks of L(F_θ(X_n), Y_n) (no adaptation)
     double inner_loss_before = 0;  ///< mean self-supervised loss before the first inner step
     double inner_loss_after = 0;   ///< ... and after the last
-    ParamMap grads;  ///< d objective / d θ (outer_objective: L(θ') or L(θ') − L(θ)), by name
-    ParamMap step_size_grads;  ///< d outer / d α (Meta-SGD only)
+    ParamMap grads;                ///< d outer / d θ, by name
+    ParamMap step_size_grads;      ///< d outer / d α (Meta-SGD only)
     /// Tasks left out because their inner loop diverged; the means above are over the rest.
     int64_t dropped_tasks = 0;
     /// Tasks in the batch, dropped ones included.

@@ -1,4 +1,4 @@
-// Chamfer and Hausdorff distances: the point-to-point metrics of reference §3.
+// Chamfer and Hausdorff distances: the point-to-point metrics of README.md, "Metric conventions".
 #include <ATen/ATen.h>
 
 #include <algorithm>

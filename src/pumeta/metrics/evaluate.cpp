@@ -1,4 +1,4 @@
-// All metrics of one prediction, in the evaluation frame of reference §3.
+// All metrics of one prediction, in the GT frame of README.md, "Metric conventions".
 #include <ATen/ATen.h>
 
 #include "pumeta/core/tensor_checks.h"

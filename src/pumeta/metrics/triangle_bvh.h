@@ -11,14 +11,15 @@ namespace pumeta {
 
 class TriangleBvh {
   public:
-    /// The mesh's faces must index its vertices; degenerate triangles are allowed.
+    /// mesh.vertices: float32 [V,3], V >= 1; mesh.faces: int64 [F,3], each index in [0, V)
+    /// (else InputError). Degenerate triangles are allowed.
     explicit TriangleBvh(const TriangleMesh& mesh);
     ~TriangleBvh();
     TriangleBvh(TriangleBvh&&) noexcept;
     TriangleBvh& operator=(TriangleBvh&&) noexcept;
 
-    /// Unsquared distance from each query [Q,3] to the closest point on any triangle;
-    /// returns float64 [Q]. Parallel over queries.
+    /// Unsquared distance from each query (float32 [Q,3], Q >= 0; else InputError) to the
+    /// closest point on any triangle; returns a float64 CPU tensor [Q]. Parallel over queries.
     at::Tensor distances(const at::Tensor& queries) const;
 
   private:
@@ -26,8 +27,8 @@ class TriangleBvh {
     std::unique_ptr<Impl> impl_;
 };
 
-/// Exact distance from point p to triangle (a, b, c) (Ericson, Real-Time Collision
-/// Detection, 5.1.5). Exposed for tests.
+/// Exact (unsquared) distance from point p to triangle (a, b, c), each a double[3]
+/// (Ericson, Real-Time Collision Detection, 5.1.5). Exposed for tests.
 double point_triangle_distance(const double p[3], const double a[3], const double b[3],
                                const double c[3]);
 

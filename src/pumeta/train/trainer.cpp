@@ -3,55 +3,39 @@
 #include <ATen/ATen.h>
 #include <spdlog/spdlog.h>
 
-#include <chrono>
 #include <cmath>
-#include <filesystem>
 #include <limits>
 #include <map>
-#include <optional>
 #include <string>
 #include <vector>
 
 #include "pumeta/core/blas_check.h"
 #include "pumeta/core/error.h"
-#include "pumeta/core/interrupt.h"
 #include "pumeta/core/json_fields.h"
-#include "pumeta/core/progress.h"
 #include "pumeta/data/patch_set.h"
 #include "pumeta/models/backbone.h"
 #include "pumeta/models/checkpoint.h"
 #include "pumeta/nn/adam.h"
 #include "pumeta/nn/gradients.h"
+#include "pumeta/train/run_loop.h"
 #include "pumeta/train/training_state.h"
 #include "pumeta/train/validation.h"
 
 namespace pumeta {
 
-namespace fs = std::filesystem;
-
 namespace {
 
 template <class Self, class Visit>
 void visit_fields(Self& c, Visit&& visit) {
+    visit_run_settings(c, visit);
     visit("backbone", c.backbone);
-    visit("train_data", c.train_data);
-    visit("val_data", c.val_data);
-    visit("run_dir", c.run_dir);
     visit("batch_size", c.batch_size);
-    visit("steps", c.steps);
     visit("lr", c.lr);
     visit("lr_decay_rate", c.lr_decay_rate);
     visit("lr_decay_steps", c.lr_decay_steps);
     visit("lr_min", c.lr_min);
-    visit("sampler", c.sampler);
-    visit("augment", c.augment);
-    visit("log_every", c.log_every);
-    visit("val_every", c.val_every);
     visit("val_patches", c.val_patches);
-    visit("checkpoint_every", c.checkpoint_every);
-    visit("seed", c.seed);
     visit("init_from", c.init_from);
-    visit("distributed", c.distributed);
 }
 
 }  // namespace
@@ -59,14 +43,8 @@ void visit_fields(Self& c, Visit&& visit) {
 TrainConfig TrainConfig::from_json(const nlohmann::json& j) {
     TrainConfig c;
     read_fields(j, "train config", [&](auto&& visit) { visit_fields(c, visit); });
-    if (c.run_dir.empty()) throw_input_error("train config", "'run_dir' is required");
-    if (c.train_data.empty()) throw_input_error("train config", "'train_data' is required");
-    if (c.batch_size < 1 || c.steps < 0 || c.lr <= 0)
-        throw_input_error("train config", "batch_size, steps and lr must be positive");
-    if (c.batch_size % c.distributed.world_size != 0)
-        throw_input_error("train config", "batch_size {} does not split evenly over {} processes",
-                          c.batch_size, c.distributed.world_size);
-    parse_input_sampler(c.sampler);
+    check_run_settings(c, "train config", "batch_size", c.batch_size);
+    if (!(c.lr > 0)) throw_input_error("train config", "'lr' must be positive");
     return c;
 }
 
@@ -144,6 +122,101 @@ void initialise_from(Backbone& model, const std::string& path, bool log) {
             fresh.empty() ? std::string("none") : fmt::format("{}", fmt::join(fresh, ", ")));
 }
 
+/// Supervised pretraining's step (Adam on the backbone's loss) and validation (CD on
+/// held-out patches).
+class SupervisedStage final : public RunStage {
+  public:
+    SupervisedStage(const TrainConfig& config, Backbone& model, ProcessGroup& group,
+                    const TrainingState& opened)
+        : config_(config),
+          model_(model),
+          group_(group),
+          data_(config, config.batch_size, config.val_patches, model, group),
+          adam_(model.parameters(), AdamOptions{config.lr}) {
+        int64_t step = 0;
+        if (!opened.info.is_null()) {
+            adam_.load_state(opened.optimizer, opened.info.at("adam"));
+            step = opened.info.at("step");
+            if (opened.info.value("last_val_cd", nlohmann::json()).is_number())
+                last_val_ = opened.info["last_val_cd"];
+            data_.loader.seek(opened.info.at("loader_position"));
+        }
+        ParamMap adam_state;
+        for (auto& [name, t] : adam_.state()) adam_state["adam/" + name] = t;
+        start_ranks_in_sync(group, model,
+                            {{"step", step},
+                             {"loader_position", data_.loader.position()},
+                             {"adam_steps", adam_.steps()}},
+                            adam_state);
+    }
+
+    StepOutcome step(int64_t step, const std::function<bool()>& wants_stop) override {
+        Batch batch = data_.loader.next();
+        adam_.set_lr(learning_rate(config_, step));
+        model_.update_buffers(batch.input, model_.parameters());
+        LossTerms terms = model_.loss_terms(batch.input, batch.gt, model_.parameters(), step);
+        at::Tensor loss = sum_of(terms);
+        ParamMap grads = gradients(loss, model_.parameters());
+        double loss_value = loss.item<double>();
+        if (terms.size() > 1)
+            for (const auto& [name, term] : terms) term_sums_[name] += term.item<double>();
+        bool stop = wants_stop();
+        if (group_.enabled()) all_reduce_step(group_, grads, model_.buffers(), loss_value, stop);
+        adam_.step(grads);
+        loss_sum_ += loss_value;
+        ++loss_count_;
+        return {loss_value, stop, fmt::format("loss {:.3e} val {:.3e}", loss_value, last_val_)};
+    }
+
+    nlohmann::json log_fields() override {
+        nlohmann::json fields = {{"loss", loss_sum_ / loss_count_}, {"lr", adam_.lr()}};
+        // This process's share of the batch only, when distributed.
+        for (auto& [name, sum] : term_sums_) {
+            fields["loss_" + name] = sum / loss_count_;
+            sum = 0;
+        }
+        loss_sum_ = 0;
+        loss_count_ = 0;
+        return fields;
+    }
+
+    bool validates() const override { return data_.val.has_value(); }
+
+    ValidationOutcome validate(int64_t) override {
+        last_val_ = distributed_validation_cd(model_, *data_.val, group_);
+        return {last_val_,
+                {{"val_cd", last_val_}, {"input_cd", data_.val->input_cd}},
+                fmt::format("val CD {:.4e} (input {:.4e})", last_val_, data_.val->input_cd)};
+    }
+
+    void save_state(ParamMap& tensors, nlohmann::json& info) const override {
+        tensors = adam_.state();
+        info["adam"] = adam_.state_info();
+        info["last_val_cd"] = last_val_;
+        info["loader_position"] = data_.loader.position();
+    }
+
+    nlohmann::json model_extra(int64_t step) const override {
+        return {{"train_config", config_.to_json()},
+                {"sampler", config_.sampler},
+                {"step", step},
+                {"val_cd", last_val_}};
+    }
+
+    double last_val() const { return last_val_; }
+
+  private:
+    const TrainConfig& config_;
+    Backbone& model_;
+    ProcessGroup& group_;
+    RunData data_;
+    Adam adam_;
+    double last_val_ = std::numeric_limits<double>::infinity();
+    double loss_sum_ = 0;
+    std::map<std::string, double> term_sums_;  // of backbones whose loss has several terms
+    int64_t loss_count_ = 0;
+};
+
 }  // namespace
 
 TrainResult train(const TrainConfig& config, bool resume, double stop_after_seconds,
@@ -151,9 +224,7 @@ TrainResult train(const TrainConfig& config, bool resume, double stop_after_seco
     check_blas_speed();
     ProcessGroup group(config.distributed);
     // Rank 0 alone writes the run directory; the others only read it when resuming.
-    bool writes = group.is_main();
-    fs::path state_file = fs::path(config.run_dir) / "state.ckpt";
-    fs::path log_file = fs::path(config.run_dir) / "log.jsonl";
+    const bool writes = group.is_main();
     TrainingState opened =
         open_run(config.run_dir, {resume, allow_changes}, writes, "train", config.to_json(), [&] {
             if (config.backbone.is_null())
@@ -162,154 +233,11 @@ TrainResult train(const TrainConfig& config, bool resume, double stop_after_seco
             if (!config.init_from.empty()) initialise_from(*fresh, config.init_from, writes);
             return fresh;
         });
-    std::unique_ptr<Backbone> model = std::move(opened.model);
-    nlohmann::json state_info = opened.info;
-    ParamMap optimizer_state = std::move(opened.optimizer);
-    PatchSet train_set = load_patch_set(config.train_data);
-    if (train_set.ratio != model->ratio())
-        throw_input_error(config.train_data, "patch set has ratio {} but the model has ratio {}",
-                          train_set.ratio, model->ratio());
-    LoaderOptions loader_options;
-    loader_options.batch_size = config.batch_size;
-    loader_options.sampler = parse_input_sampler(config.sampler);
-    loader_options.augment = config.augment;
-    loader_options.seed = config.seed;
-    loader_options.shard_index = group.rank();
-    loader_options.shard_count = group.world_size();
-    PatchLoader loader(train_set, loader_options);
-
-    std::optional<ValidationSet> val;
-    if (!config.val_data.empty())
-        val = make_validation_set(load_patch_set(config.val_data), config.val_patches,
-                                  loader_options.sampler, config.seed);
-
-    Adam adam(model->parameters(), AdamOptions{config.lr});
-    int64_t step = 0;
-    double best_val = std::numeric_limits<double>::infinity();
-    double last_val = best_val;
-    if (!state_info.is_null()) {
-        adam.load_state(optimizer_state, state_info.at("adam"));
-        step = state_info.at("step");
-        // A run without validation stores its initial infinities, which JSON writes as null.
-        for (auto [key, value] : {std::pair{"best_val_cd", &best_val}, {"last_val_cd", &last_val}})
-            if (state_info.value(key, nlohmann::json()).is_number()) *value = state_info[key];
-        loader.seek(state_info.at("loader_position"));
-    }
-    {
-        ParamMap state;
-        for (auto& [name, p] : model->parameters()) state["theta/" + name] = p;
-        for (auto& [name, b] : model->buffers()) state["buffer/" + name] = b;
-        for (auto& [name, t] : adam.state()) state["adam/" + name] = t;
-        start_in_sync(
-            group,
-            {{"step", step}, {"loader_position", loader.position()}, {"adam_steps", adam.steps()}},
-            state);
-    }
-    nlohmann::json extra = {{"train_config", config.to_json()}, {"sampler", config.sampler}};
-
-    auto save_state = [&] {
-        nlohmann::json info = {{"step", step},
-                               {"adam", adam.state_info()},
-                               {"best_val_cd", best_val},
-                               {"last_val_cd", last_val},
-                               {"loader_position", loader.position()},
-                               {kRunConfigKey, comparable_config(config.to_json())}};
-        save_training_state(state_file.string(), *model, adam.state(), info);
-        nlohmann::json model_extra = extra;
-        model_extra["step"] = step;
-        model_extra["val_cd"] = last_val;
-        save_checkpoint((fs::path(config.run_dir) / "model.pt").string(), *model, model_extra);
-    };
-
-    auto start = std::chrono::steady_clock::now();
-    auto elapsed = [&] {
-        return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-    };
-    std::optional<ProgressBar> progress;
-    if (writes) progress.emplace(config.steps, "train");
-    double loss_sum = 0;
-    std::map<std::string, double> term_sums;  // of backbones whose loss has several terms
-    int64_t loss_count = 0, first_step = step;
-    int64_t saved_step = state_info.is_null() ? -1 : step;
-    while (step < config.steps) {
-        Batch batch = loader.next();
-        adam.set_lr(learning_rate(config, step));
-        model->update_buffers(batch.input, model->parameters());
-        LossTerms terms = model->loss_terms(batch.input, batch.gt, model->parameters(), step);
-        at::Tensor loss = sum_of(terms);
-        ParamMap grads = gradients(loss, model->parameters());
-        double loss_value = loss.item<double>();
-        if (terms.size() > 1)
-            for (const auto& [name, term] : terms) term_sums[name] += term.item<double>();
-        bool stop =
-            (stop_after_seconds > 0 && elapsed() > stop_after_seconds) || interrupt_requested();
-        if (group.enabled()) all_reduce_step(group, grads, model->buffers(), loss_value, stop);
-        adam.step(grads);
-        ++step;
-        if (!std::isfinite(loss_value))
-            throw InternalError(fmt::format("train: loss became {} at step {}", loss_value, step));
-        if (config.distributed.check_every > 0 && step % config.distributed.check_every == 0 &&
-            !group.identical(model->parameters()))
-            throw InternalError(
-                fmt::format("train: the ranks' parameters differ after step {}", step));
-        loss_sum += loss_value;
-        ++loss_count;
-        if (progress)
-            progress->update(step, fmt::format("loss {:.3e} val {:.3e}", loss_value, last_val));
-        if (writes && step % config.log_every == 0) {
-            double seconds = elapsed();
-            nlohmann::json line = {{"step", step},
-                                   {"loss", loss_sum / loss_count},
-                                   {"lr", adam.lr()},
-                                   {"seconds", seconds},
-                                   {"steps_per_second", (step - first_step) / seconds}};
-            // This process's share of the batch only, when distributed.
-            for (auto& [name, sum] : term_sums) {
-                line["loss_" + name] = sum / loss_count;
-                sum = 0;
-            }
-            append_log(log_file.string(), line);
-            loss_sum = 0;
-            loss_count = 0;
-        }
-        if (val && (step % config.val_every == 0 || step == config.steps || stop)) {
-            last_val = distributed_validation_cd(*model, *val, group);
-            bool improved = last_val < best_val;
-            if (improved) best_val = last_val;
-            if (improved && writes) {
-                nlohmann::json best_extra = extra;
-                best_extra["step"] = step;
-                best_extra["val_cd"] = last_val;
-                save_checkpoint((fs::path(config.run_dir) / "best.pt").string(), *model,
-                                best_extra);
-            }
-            if (writes) {
-                append_log(log_file.string(), {{"step", step},
-                                               {"val_cd", last_val},
-                                               {"best", improved},
-                                               {"input_cd", val->input_cd},
-                                               {"seconds", elapsed()}});
-                spdlog::info("train: step {} val CD {:.4e} (best {:.4e}, input {:.4e})", step,
-                             last_val, best_val, val->input_cd);
-            }
-        }
-        if (writes && (step % config.checkpoint_every == 0 || step == config.steps || stop)) {
-            save_state();
-            saved_step = step;
-        }
-        if (stop) {
-            if (writes)
-                spdlog::info("train: {} at step {}; checkpoint saved, continue with --resume",
-                             interrupt_requested() ? "interrupted" : "time limit reached", step);
-            break;
-        }
-    }
-    if (progress) progress->finish();
-    // A fresh run that ends before its first step (steps = 0) still leaves its initial model.
-    if (writes && saved_step != step) save_state();
-    // Every rank returns only once rank 0's last checkpoint is on disk.
-    group.barrier();
-    return {step, best_val, last_val};
+    SupervisedStage stage(config, *opened.model, group, opened);
+    RunLoopOptions loop = loop_options(config, "train", config.to_json(), stop_after_seconds);
+    loop.best_key = "best_val_cd";
+    RunLoopResult result = run_loop(*opened.model, stage, loop, group, opened.info);
+    return {result.steps, result.best_score, stage.last_val()};
 }
 
 }  // namespace pumeta

@@ -1,9 +1,6 @@
-// Supervised pretraining (paper Eq. 1): min_θ L(F_θ(X), Y) over training patches, resumable.
-// A run directory holds:
-//   state.ckpt   latest model + Adam moments + loader position (what --resume continues)
-//   model.pt     latest model (a plain checkpoint usable by `pumeta upsample`)
-//   best.pt      model with the lowest validation CD so far
-//   log.jsonl    one JSON object per logged step and per validation
+// Supervised pretraining (paper Eq. 1): min_θ L(F_θ(X), Y) over training patches, resumable:
+// a RunStage of the shared run loop (train/run_loop.h: the run directory's files, resume,
+// Ctrl-C); best.pt is the model with the lowest validation CD.
 //
 // Data-parallel over W processes (config.distributed): every rank takes batch_size/W patches
 // of each batch and the gradients are averaged before the Adam step, which equals one process
@@ -16,39 +13,28 @@
 #include <nlohmann/json.hpp>
 #include <string>
 
-#include "pumeta/distributed/process_group.h"
+#include "pumeta/train/run_settings.h"
 
 namespace pumeta {
 
-struct TrainConfig {
+/// Run settings (train/run_settings.h; steps default to 10,000) plus supervised training's own.
+struct TrainConfig : RunSettings {
+    TrainConfig() { steps = 10000; }
+
     /// Backbone config for make_backbone() (ignored on resume: the state's config is used).
     nlohmann::json backbone;
-    /// PatchSet files written by make-dataset (train-x<r>.tensors / val-x<r>.tensors).
-    std::string train_data;
-    std::string val_data;
-    std::string run_dir;
     int64_t batch_size = 64;
-    int64_t steps = 10000;
     /// Adam, lr = max(lr_min, lr · lr_decay_rate^(step / lr_decay_steps)) (PU-GCN's schedule).
     double lr = 1e-3;
     double lr_decay_rate = 0.7;
     int64_t lr_decay_steps = 50000;
     double lr_min = 1e-6;
-    /// How inputs are drawn from GT patches: fps, random or nonuniform.
-    std::string sampler = "fps";
-    bool augment = true;
-    int64_t log_every = 20;
-    int64_t val_every = 500;
     /// Validation patches (fixed: the first val_patches of a seeded draw, no augmentation).
     int64_t val_patches = 256;
-    int64_t checkpoint_every = 500;
-    uint64_t seed = 1;
     /// Optional checkpoint whose parameters and buffers initialise a fresh run wherever name
     /// and shape match (e.g. an 8x model warm-started from a 4x one: only the ratio-dependent
     /// upsampling layers keep their random initialisation). Ignored on resume.
     std::string init_from;
-    /// Processes and rendezvous; batch_size must be a multiple of the world size.
-    DistributedConfig distributed;
 
     /// Fields not given keep their defaults; unknown fields are an InputError.
     static TrainConfig from_json(const nlohmann::json& j);

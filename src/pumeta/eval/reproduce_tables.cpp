@@ -1,0 +1,345 @@
+#include "pumeta/eval/reproduce_tables.h"
+
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <algorithm>
+
+namespace pumeta {
+
+std::string TablePass::n_label() const { return "N = " + std::to_string(config.tta_steps); }
+
+RunSpec TablePass::spec(const std::string& set, int64_t ratio, const std::string& method) const {
+    RunSpec s;
+    s.set = set;
+    s.ratio = ratio;
+    s.method = method;
+    return s;
+}
+
+RunSpec TablePass::network_spec(const std::string& set, int64_t ratio, const std::string& model,
+                                int64_t steps, double lr, const std::string& noise) const {
+    RunSpec s = spec(set, ratio, "network");
+    s.model = model;
+    s.tta_steps = steps;
+    s.tta_lr = lr;
+    s.noise = noise;
+    return s;
+}
+
+const RunResult* TablePass::network(const std::string& set, int64_t ratio, const std::string& model,
+                                    int64_t steps, double lr, const std::string& noise) {
+    return &cells.get(network_spec(set, ratio, model, steps, lr, noise));
+}
+
+std::vector<const RunResult*> TablePass::per_set(
+    const std::function<const RunResult*(const std::string&)>& run) const {
+    std::vector<const RunResult*> runs;
+    for (const std::string& set : config.sets) runs.push_back(run(set));
+    return runs;
+}
+
+std::pair<std::optional<std::string>, std::optional<std::string>> TablePass::backbone_models(
+    const std::string& backbone, int64_t ratio) {
+    auto plain = models.find(backbone, ratio, false);
+    auto meta = models.find(backbone, ratio, true);
+    if (!plain)
+        notes.push_back(fmt::format("{} at {}×: no model in {} (no rows)",
+                                    config.label_of(backbone), ratio, config.models_dir));
+    else if (!meta)
+        notes.push_back(fmt::format("{} at {}×: no meta-trained model (no \"ours\" rows)",
+                                    config.label_of(backbone), ratio));
+    return std::make_pair(plain, meta);
+}
+
+namespace {
+
+/// Data: the number of objects of each set (the cases of the "input" cells).
+std::string counts_line(TablePass& pass, int64_t ratio) {
+    std::string text;
+    for (const std::string& set : pass.config.sets) {
+        const RunResult& r = pass.cells.get(pass.spec(set, ratio, "input"));
+        text += fmt::format("{}{} ({})", text.empty() ? "" : ", ", set,
+                            r.ok ? std::to_string(r.cases.size()) + " objects" : "no cases");
+    }
+    return text;
+}
+
+/// Rows of Table I that need no model: the input itself, the sampling floor, the midpoint
+/// baseline and the external baselines whose program exists.
+void table1_reference_rows(TablePass& pass, std::vector<TableWriter::Row>& rows) {
+    const int64_t r = pass.config.main_ratio;
+    auto reference_row = [&](const std::string& label, const std::string& method) {
+        rows.push_back({label,
+                        pass.per_set([&](const std::string& set) {
+                            return &pass.cells.get(pass.spec(set, r, method));
+                        }),
+                        {}});
+    };
+    reference_row("input, unchanged", "input");
+    reference_row("sampling floor (2nd GT sample)", "floor");
+    reference_row("midpoint baseline", "midpoint");
+    for (const ExternalBaseline& baseline : pass.config.external_baselines) {
+        std::string command = with_bindir(baseline.command);
+        std::string program = command.substr(0, command.find(' '));
+        // A bare program name is left to the shell's PATH lookup.
+        if (program.find('/') != std::string::npos && access(program.c_str(), X_OK) != 0) {
+            pass.notes.push_back(fmt::format("{}: {} is not built or not executable (no row)",
+                                             baseline.label, program));
+            continue;
+        }
+        rows.push_back({baseline.label,
+                        pass.per_set([&](const std::string& set) {
+                            RunSpec s = pass.spec(set, r, "external");
+                            s.label = baseline.label;
+                            // The template: a cell's identity does not depend on where
+                            // this binary was run from.
+                            s.command = baseline.command;
+                            return &pass.cells.get(s);
+                        }),
+                        {}});
+    }
+}
+
+/// " <what> only for <labels> (`<field>`: the others cost too much time here).": the note
+/// of a table whose rows a config field limits to some backbones.
+void rows_only_for(TablePass& pass, const std::vector<std::string>& only, const std::string& what,
+                   const std::string& field) {
+    pass.md() << " " << what << " only for";
+    for (const std::string& b : only) pass.md() << " " << pass.config.label_of(b);
+    pass.md() << " (`" << field << "`: the others cost too much time here).";
+}
+
+}  // namespace
+
+void write_table1(TablePass& pass) {
+    const ReproduceConfig& config = pass.config;
+    const int64_t r = config.main_ratio;
+    pass.md() << "## Table I: " << r << "× on every test set\n\n"
+              << "Data: " << counts_line(pass, r) << ".\n\n";
+    std::vector<TableWriter::Row> rows;
+    table1_reference_rows(pass, rows);
+    for (const std::string& backbone : config.backbones) {
+        const auto found = pass.backbone_models(backbone, r);  // named: lambdas below use them
+        const auto& plain = found.first;
+        const auto& meta = found.second;
+        if (!plain) continue;
+        TableWriter::Row base{
+            config.label_of(backbone),
+            pass.per_set([&](const std::string& set) { return pass.network(set, r, *plain, 0); }),
+            {}};
+        rows.push_back(base);
+        if (!meta) continue;
+        rows.push_back({config.label_of(backbone) + " + ours (" + pass.n_label() + ")",
+                        pass.per_set([&](const std::string& set) {
+                            return pass.network(set, r, *meta, config.tta_steps);
+                        }),
+                        base.runs});
+    }
+    nlohmann::json& t1 = pass.tables["table1"];
+    pass.writer.table("Table I", config.sets, {kCd, kPsnr}, rows, t1);
+    pass.md() << "Extended (Hausdorff and point-to-surface distances):\n\n";
+    nlohmann::json& t1x = pass.tables["table1_extended"];
+    pass.writer.table("Table I (extended)", config.sets, {kHd, kP2f}, rows, t1x);
+}
+
+void write_table2(TablePass& pass) {
+    const ReproduceConfig& config = pass.config;
+    const int64_t r = config.main_ratio;
+    const std::string set = config.sets.front();
+    std::vector<std::string> levels = {"clean"};
+    for (const std::string& n : config.noise) levels.push_back(n);
+    const std::vector<std::string>& only = config.noise_backbones;
+    pass.md() << "## Table II: noise robustness, " << r << "× on " << set << "\n\n"
+              << "Inputs with Gaussian noise of the relative protocol (`relX` = X % of the GT's "
+                 "bounding-box diagonal, docs/data.md), scored against the clean GT.";
+    const bool all_listed = std::all_of(
+        config.backbones.begin(), config.backbones.end(),
+        [&](const std::string& b) { return std::count(only.begin(), only.end(), b) > 0; });
+    if (!only.empty() && !all_listed) rows_only_for(pass, only, "Rows", "noise_backbones");
+    pass.md() << "\n\n";
+    auto noise_of = [](const std::string& level) { return level == "clean" ? "" : level; };
+    std::vector<TableWriter::Row> rows;
+    {
+        TableWriter::Row row{"midpoint baseline", {}, {}};
+        for (const std::string& level : levels) {
+            RunSpec s = pass.spec(set, r, "midpoint");
+            s.noise = noise_of(level);
+            row.runs.push_back(&pass.cells.get(s));
+        }
+        rows.push_back(row);
+    }
+    for (const std::string& backbone : config.backbones) {
+        if (!only.empty() && !std::count(only.begin(), only.end(), backbone)) continue;
+        const auto [plain, meta] = pass.backbone_models(backbone, r);
+        if (!plain) continue;
+        TableWriter::Row base{config.label_of(backbone), {}, {}};
+        for (const std::string& level : levels)
+            base.runs.push_back(pass.network(set, r, *plain, 0, -1, noise_of(level)));
+        rows.push_back(base);
+        if (!meta) continue;
+        TableWriter::Row ours{config.label_of(backbone) + " + ours", {}, base.runs};
+        for (const std::string& level : levels)
+            ours.runs.push_back(pass.network(set, r, *meta, config.tta_steps, -1, noise_of(level)));
+        rows.push_back(ours);
+    }
+    pass.writer.table("Table II", levels, {kCd}, rows, pass.tables["table2"]);
+}
+
+void write_table3(TablePass& pass) {
+    const ReproduceConfig& config = pass.config;
+    const int64_t r = config.main_ratio;
+    const std::string set = config.sets.front();
+    std::vector<std::string> groups;
+    for (int64_t ratio : config.table3_ratios) groups.push_back(std::to_string(ratio) + "×");
+    pass.md() << "## Table III: other ratios on " << set << "\n\n"
+              << "A ratio without a native model uses a smaller-ratio model repeatedly (16× = 4× "
+                 "twice; adaptation then runs in each pass), or, for a backbone whose weights "
+                 "serve any ratio (PU-Dense keeps the rN likeliest voxels), the "
+              << r
+              << "× model with "
+                 "patches of (its patch size)·"
+              << r << "/r input points.\n\n";
+    std::vector<TableWriter::Row> rows;
+    TableWriter::Row midpoint{"midpoint baseline", {}, {}};
+    for (int64_t ratio : config.table3_ratios)
+        midpoint.runs.push_back(&pass.cells.get(pass.spec(set, ratio, "midpoint")));
+    rows.push_back(midpoint);
+    for (const std::string& backbone : config.backbones) {
+        TableWriter::Row base{config.label_of(backbone), {}, {}};
+        TableWriter::Row ours{config.label_of(backbone) + " + ours", {}, {}};
+        bool any_plain = false, any_meta = false;
+        for (int64_t ratio : config.table3_ratios) {
+            auto [plain, meta] = pass.backbone_models(backbone, ratio);
+            base.runs.push_back(plain ? pass.network(set, ratio, *plain, 0) : nullptr);
+            ours.runs.push_back(meta ? pass.network(set, ratio, *meta, config.tta_steps) : nullptr);
+            any_plain |= bool(plain);
+            any_meta |= bool(meta);
+        }
+        ours.bases = base.runs;
+        if (any_plain) rows.push_back(base);
+        if (any_meta) rows.push_back(ours);
+    }
+    pass.writer.table("Table III", groups, {kCd, kPsnr}, rows, pass.tables["table3"]);
+}
+
+void write_table4(TablePass& pass) {
+    const ReproduceConfig& config = pass.config;
+    const int64_t r = config.main_ratio;
+    pass.md() << "## Table IV: ablation, " << r << "× (" << pass.n_label() << ")\n\n"
+              << "\"ours, no adaptation\" is the meta-trained model used without adaptation: it "
+                 "separates what meta-training changed in the weights from what adaptation "
+                 "adds.\n\n";
+    std::vector<TableWriter::Row> rows;
+    for (const std::string& backbone : config.backbones) {
+        const auto found = pass.backbone_models(backbone, r);  // named: lambdas below use them
+        const auto& plain = found.first;
+        const auto& meta = found.second;
+        if (!plain) continue;
+        const std::string label = config.label_of(backbone);
+        TableWriter::Row base{
+            label,
+            pass.per_set([&](const std::string& set) { return pass.network(set, r, *plain, 0); }),
+            {}};
+        rows.push_back(base);
+        double lr = config.tta_lr_for(backbone, r);
+        TableWriter::Row tta{label + " + TTA w/o meta", pass.per_set([&](const std::string& set) {
+                                 return pass.network(set, r, *plain, config.tta_steps, lr);
+                             }),
+                             base.runs};
+        rows.push_back(tta);
+        if (!meta) continue;
+        std::vector<const RunResult*> ours = pass.per_set(
+            [&](const std::string& set) { return pass.network(set, r, *meta, config.tta_steps); });
+        rows.push_back({label + " + ours, no adaptation", pass.per_set([&](const std::string& set) {
+                            return pass.network(set, r, *meta, 0);
+                        }),
+                        base.runs});
+        rows.push_back({label + " + ours", ours, base.runs});
+        rows.push_back({label + " + ours vs TTA w/o meta", ours, tta.runs});
+    }
+    pass.writer.table("Table IV", config.sets, {kCd, kPsnr}, rows, pass.tables["table4"]);
+    pass.md() << "The last row of each backbone repeats \"ours\" with \"TTA w/o meta\" as its "
+                 "base (equal N).\n\n";
+}
+
+void write_table5(TablePass& pass) {
+    const ReproduceConfig& config = pass.config;
+    const int64_t r = config.main_ratio;
+    const std::string set = config.sets.front();
+    pass.md() << "## Table V: number of adaptation steps, " << r << "× on " << set << "\n\n"
+              << "Time is the wall time per object on this machine (mean), adaptation included; "
+                 "the first row of each backbone is the plain backbone.\n\n";
+    std::vector<TableWriter::Row> rows;
+    for (const std::string& backbone : config.sweep_backbones) {
+        const auto [plain, meta] = pass.backbone_models(backbone, r);
+        if (!plain || !meta) continue;
+        const std::string label = config.label_of(backbone);
+        TableWriter::Row base{label + ", plain", {pass.network(set, r, *plain, 0)}, {}};
+        rows.push_back(base);
+        for (int64_t steps : config.steps_sweep)
+            rows.push_back({label + " + ours, N = " + std::to_string(steps),
+                            {pass.network(set, r, *meta, steps)},
+                            base.runs});
+    }
+    pass.writer.table("Table V", {set}, {kCd, kPsnr, kSeconds}, rows, pass.tables["table5"]);
+}
+
+void write_table6(TablePass& pass) {
+    const ReproduceConfig& config = pass.config;
+    const ZeroShotBaseline& z = config.zero_shot;
+    if (z.max_cases <= 0) return;
+    const int64_t r = config.main_ratio;
+    pass.md() << "## Table VI: internal learning vs external pretraining, " << r << "× (first "
+              << z.max_cases << " objects of each set)\n\n"
+              << "\"zero-shot\" trains the backbone from a fresh initialisation on each input's "
+                 "own pairs (X↓, X) only, in the spirit of ZSPU: "
+              << z.steps << " Adam steps of " << z.batch_patches << " patches, lr " << z.lr
+              << ", random rotations; its time per object includes that training. Its base is "
+                 "the pretrained backbone on the same objects, so the change shows what external "
+                 "pretraining buys.";
+    if (!z.backbones.empty())
+        rows_only_for(pass, z.backbones, "Zero-shot rows", "zero_shot.backbones");
+    pass.md() << "\n\n";
+    auto first = [&](RunSpec s) {
+        s.max_cases = z.max_cases;
+        return &pass.cells.get(s);
+    };
+    std::vector<TableWriter::Row> rows;
+    rows.push_back(
+        {"midpoint baseline",
+         pass.per_set([&](const std::string& set) { return first(pass.spec(set, r, "midpoint")); }),
+         {}});
+    for (const std::string& backbone : config.backbones) {
+        const auto found = pass.backbone_models(backbone, r);  // named: lambdas below use them
+        const auto& plain = found.first;
+        const auto& meta = found.second;
+        if (!plain) continue;
+        const std::string label = config.label_of(backbone);
+        TableWriter::Row base{label,
+                              pass.per_set([&](const std::string& set) {
+                                  return first(pass.network_spec(set, r, *plain, 0));
+                              }),
+                              {}};
+        const std::vector<std::string>& only = z.backbones;
+        if (only.empty() || std::count(only.begin(), only.end(), backbone))
+            rows.push_back({label + " zero-shot (from scratch)",
+                            pass.per_set([&](const std::string& set) {
+                                RunSpec s = pass.spec(set, r, "zero-shot");
+                                s.model = *plain;
+                                s.zero_shot = z;
+                                return first(s);
+                            }),
+                            base.runs});
+        rows.push_back(base);
+        if (!meta) continue;
+        rows.push_back({label + " + ours (" + pass.n_label() + ")",
+                        pass.per_set([&](const std::string& set) {
+                            return first(pass.network_spec(set, r, *meta, config.tta_steps));
+                        }),
+                        base.runs});
+    }
+    pass.writer.table("Table VI", config.sets, {kCd, kPsnr, kSeconds}, rows, pass.tables["table6"]);
+}
+
+}  // namespace pumeta

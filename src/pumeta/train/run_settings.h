@@ -1,0 +1,52 @@
+// The settings every training run shares (TrainConfig and MetaTrainConfig derive from them):
+// its data, directory, length, cadence, seed and processes.
+#pragma once
+
+#include <cstdint>
+#include <string>
+
+#include "pumeta/distributed/process_group.h"
+
+namespace pumeta {
+
+struct RunSettings {
+    /// PatchSet files written by make-dataset (train-x<r>.tensors / val-x<r>.tensors); no
+    /// validation without val_data.
+    std::string train_data;
+    std::string val_data;
+    std::string run_dir;
+    int64_t steps = 0;
+    /// How inputs are drawn from GT patches: fps, random or nonuniform.
+    std::string sampler = "fps";
+    bool augment = true;
+    int64_t log_every = 20;
+    int64_t val_every = 500;
+    int64_t checkpoint_every = 500;
+    uint64_t seed = 1;
+    /// Processes and rendezvous; a batch must be a multiple of the world size.
+    DistributedConfig distributed;
+};
+
+/// Visits RunSettings' fields by their JSON names (core/json_fields.h).
+template <class Self, class Visit>
+void visit_run_settings(Self& s, Visit&& visit) {
+    visit("train_data", s.train_data);
+    visit("val_data", s.val_data);
+    visit("run_dir", s.run_dir);
+    visit("steps", s.steps);
+    visit("sampler", s.sampler);
+    visit("augment", s.augment);
+    visit("log_every", s.log_every);
+    visit("val_every", s.val_every);
+    visit("checkpoint_every", s.checkpoint_every);
+    visit("seed", s.seed);
+    visit("distributed", s.distributed);
+}
+
+/// InputError naming `context` unless train_data and run_dir are given, steps and the
+/// cadences are valid, the sampler is known, and `batch` (the field `batch_name`) is at least 1
+/// and splits evenly over the processes.
+void check_run_settings(const RunSettings& s, const std::string& context,
+                        const std::string& batch_name, int64_t batch);
+
+}  // namespace pumeta
