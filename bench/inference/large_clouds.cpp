@@ -37,7 +37,7 @@ void record(benchmark::State& state, const std::string& method, double elapsed) 
 }
 
 void BM_Network(benchmark::State& state) {
-    const std::string path = default_model_path("pugcn-x4.pt");
+    const std::string path = (std::filesystem::path(models_dir()) / "pugcn-x4.pt").string();
     if (!std::filesystem::exists(path)) {
         state.SkipWithError("no shipped model (models/pugcn-x4.pt)");
         return;

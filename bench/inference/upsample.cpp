@@ -35,7 +35,9 @@ const InferenceModel* model(bool meta) {
     static std::map<bool, std::unique_ptr<InferenceModel>> models;
     auto found = models.find(meta);
     if (found != models.end()) return found->second.get();
-    std::string path = default_model_path(meta ? "pugcn-x4-meta.pt" : "pugcn-x4.pt");
+    std::string path =
+        (std::filesystem::path(models_dir()) / (meta ? "pugcn-x4-meta.pt" : "pugcn-x4.pt"))
+            .string();
     std::unique_ptr<InferenceModel> loaded;
     if (std::filesystem::exists(path))
         loaded = std::make_unique<InferenceModel>(load_inference_model(path));
@@ -103,8 +105,10 @@ void print_adaptation_cost(int rounds) {
     std::printf("test-time adaptation cost, N = 5, 1 thread, 2,048-point object, %d rounds:\n",
                 rounds);
     for (const char* name : {"pugcn-x4", "pugcn-x8", "dispu-x4", "dispu-x8", "pudense-x8"}) {
-        std::string plain_path = default_model_path(std::string(name) + ".pt");
-        std::string meta_path = default_model_path(std::string(name) + "-meta.pt");
+        std::string plain_path =
+            (std::filesystem::path(models_dir()) / (std::string(name) + ".pt")).string();
+        std::string meta_path =
+            (std::filesystem::path(models_dir()) / (std::string(name) + "-meta.pt")).string();
         if (!std::filesystem::exists(plain_path) || !std::filesystem::exists(meta_path)) continue;
         InferenceModel plain = load_inference_model(plain_path);
         InferenceModel meta = load_inference_model(meta_path);

@@ -244,6 +244,7 @@ TEST(Cli, EvalWithoutAModelTakesTheShippedModelForTheCasesRatio) {
     fs::create_directories(dir.file("shipped"));
     save_checkpoint(dir.file("shipped/pugcn-x4.pt"), *make_backbone(test::tiny_pugcn_config(4, 1)));
     save_checkpoint(dir.file("shipped/pugcn-x8.pt"), *make_backbone(test::tiny_pugcn_config(8, 2)));
+    test::write_file(dir.file("shipped/defaults.json"), R"({"family": "pugcn"})");
     setenv("PUMETA_MODELS", dir.file("shipped").c_str(), 1);
     auto r = test::run_cli({"--threads", "1", "eval", "--cases", x8.string(), "--max-cases", "1",
                             "-o", dir.file("out")});

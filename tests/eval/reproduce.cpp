@@ -368,7 +368,7 @@ TEST(ReproduceConfig, BudgetsOverrideFieldsAndMistakesAreInputErrors) {
         {{"tta_lr_without_meta", {{"pugcn", 0.03}, {"pugcn-x8", 0.01}}}}, "full");
     EXPECT_EQ(lrs.tta_lr_for("pugcn", 4), 0.03);
     EXPECT_EQ(lrs.tta_lr_for("pugcn", 8), 0.01);
-    EXPECT_EQ(lrs.tta_lr_for("dispu", 8), -1);
+    EXPECT_FALSE(lrs.tta_lr_for("dispu", 8).has_value());
 }
 
 TEST(ReproduceConfig, TheShippedConfigRoundTripsThroughJson) {

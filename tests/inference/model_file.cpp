@@ -18,6 +18,7 @@ namespace fs = std::filesystem;
 
 TEST(DefaultModel, ANativeModelForTheRatioElseAPowerOfAShippedOne) {
     test::TempDir dir;
+    test::write_file(dir.file("defaults.json"), R"({"family": "pugcn"})");
     test::write_file(dir.file("pugcn-x4.pt"), "x");
     setenv("PUMETA_MODELS", dir.path().c_str(), 1);
     auto name = [](int64_t ratio) { return fs::path(default_model_for_ratio(ratio)).filename(); };
@@ -29,6 +30,12 @@ TEST(DefaultModel, ANativeModelForTheRatioElseAPowerOfAShippedOne) {
     EXPECT_EQ(name(8), "pugcn-x8.pt");
     EXPECT_EQ(name(64), "pugcn-x8.pt");
     EXPECT_EQ(name(16), "pugcn-x4.pt");
+    // The family is data: another one, or none, is the file's business.
+    test::write_file(dir.file("defaults.json"), R"({"family": "dispu"})");
+    test::write_file(dir.file("dispu-x4.pt"), "x");
+    EXPECT_EQ(name(16), "dispu-x4.pt");
+    test::write_file(dir.file("defaults.json"), R"({"models": []})");
+    EXPECT_TRUE(test::throws_input_error([] { default_model_for_ratio(4); }, {"defaults.json"}));
     unsetenv("PUMETA_MODELS");
 }
 
@@ -73,6 +80,7 @@ TEST(Serve, DecidesTheRatioAndTheModelThatServesIt) {
     test::TempDir dir;
     save_checkpoint(dir.file("pugcn-x4.pt"), *make_backbone(test::tiny_pugcn_config(4, 1)));
     save_checkpoint(dir.file("pugcn-x8.pt"), *make_backbone(test::tiny_pugcn_config(8, 2)));
+    test::write_file(dir.file("defaults.json"), R"({"family": "pugcn"})");
     setenv("PUMETA_MODELS", dir.path().c_str(), 1);
     // No model and no ratio: the shipped default at its own ratio.
     ServedModel served = serve("", 0);

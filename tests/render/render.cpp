@@ -286,6 +286,20 @@ TEST(Render, ColormapIsMonotoneInLuminanceAndClamps) {
     EXPECT_THROW(colormap(at::zeros({3, 2})), InputError);
 }
 
+TEST(Render, ErrorColoursShareOneScaleUpToThe95thPercentile) {
+    // 0..99 in one cloud, 100..199 in the other: the shared 95th percentile is 189.05.
+    at::Tensor low = at::arange(100, at::kFloat), high = at::arange(100, 200, at::kFloat);
+    std::vector<at::Tensor> colors = error_colors({low, high});
+    ASSERT_EQ(colors.size(), 2u);
+    const double hi = at::quantile(at::cat({low, high}).to(at::kDouble), 0.95).item<double>();
+    EXPECT_TRUE(at::equal(colors[0], colormap(low, 0, hi)));
+    EXPECT_TRUE(at::equal(colors[1], colormap(high, 0, hi)));
+    // The lower cloud never reaches yellow; the top 5% are clamped to it.
+    EXPECT_LT(colors[0][99][0].item<float>(), colors[1][99][0].item<float>());
+    EXPECT_TRUE(at::equal(colors[1][99], colors[1][95]));
+    EXPECT_TRUE(error_colors({}).empty());
+}
+
 TEST(Render, RejectsBadInputs) {
     at::Tensor cloud = uniform_random_points(10, 1);
     EXPECT_THROW(render_image(at::zeros({4, 2})), InputError);

@@ -257,5 +257,93 @@ TEST(Train, ConfigTypeErrorsAreInputErrorsNamingTheField) {
     EXPECT_THROW(TrainConfig::from_json(j), InputError);
 }
 
+/// A toy adversarial backbone: the generator shifts every input point by a learned offset and
+/// repeats it r times; its auxiliary "discriminator" scores a cloud by w·mean + b and trains
+/// with least-squares GAN losses.
+class ToyAdversarial final : public Backbone {
+  public:
+    explicit ToyAdversarial(const nlohmann::json& config) : config_(config) {
+        params_["offset"] = at::full({3}, 0.05).requires_grad_(true);
+    }
+    std::string name() const override { return "toy-adversarial"; }
+    nlohmann::json config() const override { return config_; }
+    int64_t ratio() const override { return config_.at("ratio"); }
+    int64_t patch_size() const override { return 16; }
+    at::Tensor upsample(const at::Tensor& x, const ParamMap& params) const override {
+        return (x + params.at("offset")).repeat({1, ratio(), 1});
+    }
+    at::Tensor loss(const at::Tensor& x, const at::Tensor& y, const ParamMap& params,
+                    int64_t) const override {
+        return (upsample(x, params).mean(1) - y.mean(1)).square().sum(1).mean();
+    }
+    at::Tensor downsample(const at::Tensor& dense, uint64_t) const override {
+        return dense.slice(1, 0, dense.size(1) / ratio());
+    }
+    ParamMap make_auxiliary(uint64_t seed) const override {
+        return {{"w", at::full({3}, 0.1 + 0.01 * static_cast<double>(seed)).requires_grad_(true)},
+                {"b", at::zeros({}).requires_grad_(true)}};
+    }
+    LossTerms training_terms(const at::Tensor& x, const at::Tensor& y, const ParamMap& params,
+                             const ParamMap& aux, int64_t step) const override {
+        LossTerms terms = loss_terms(x, y, params, step);
+        terms.emplace_back("adversarial", (score(upsample(x, params), aux) - 1).square().mean());
+        return terms;
+    }
+    at::Tensor auxiliary_loss(const at::Tensor& x, const at::Tensor& y, const ParamMap& params,
+                              const ParamMap& aux, int64_t) const override {
+        at::Tensor fake;
+        {
+            at::NoGradGuard no_grad;
+            fake = upsample(x, params);
+        }
+        return (score(y, aux) - 1).square().mean() + score(fake, aux).square().mean();
+    }
+    double auxiliary_lr(int64_t) const override { return 0.01; }
+
+  private:
+    static at::Tensor score(const at::Tensor& cloud, const ParamMap& aux) {
+        return at::matmul(cloud.mean(1), aux.at("w")) + aux.at("b");
+    }
+    nlohmann::json config_;
+};
+
+TEST(Train, AnAuxiliaryNetworkTrainsWithItsOwnLossAndResumesOutsideTheModel) {
+    register_backbone("toy-adversarial", [](const nlohmann::json& config) {
+        return std::make_unique<ToyAdversarial>(config);
+    });
+    test::TempDir dir;
+    TrainConfig config = tiny_config(dir, 4, "straight");
+    config.backbone = {{"backbone", "toy-adversarial"}, {"ratio", 4}};
+    config.steps = 4;
+    config.lr = 0.01;
+    train(config, false);
+    // The log has the adversarial term and the auxiliary loss of every step.
+    std::vector<nlohmann::json> lines = loss_lines(dir.file("straight/log.jsonl"));
+    ASSERT_EQ(lines.size(), 4u);
+    for (const nlohmann::json& j : lines) {
+        EXPECT_TRUE(j.contains("loss_adversarial")) << j.dump();
+        EXPECT_GT(j.at("auxiliary_loss").get<double>(), 0.0) << j.dump();
+    }
+    // The discriminator trained (its w left the initial 0.11) and lives in the run state only.
+    TrainingState state = load_training_state(dir.file("straight/state.ckpt"));
+    ASSERT_TRUE(state.optimizer.count("aux/w"));
+    EXPECT_FALSE(at::allclose(state.optimizer.at("aux/w"), at::full({3}, 0.11)));
+    LoadedCheckpoint shipped = load_checkpoint(dir.file("straight/model.pt"));
+    EXPECT_EQ(shipped.backbone->parameters().size(), 1u);
+    EXPECT_EQ(shipped.extra.dump().find("aux"), std::string::npos);
+
+    // Two steps, then two more after a resume: the same generator and discriminator.
+    config.run_dir = dir.file("resumed");
+    config.steps = 2;
+    train(config, false);
+    config.steps = 4;
+    train(config, true, 0, {"steps"});
+    TrainingState resumed = load_training_state(dir.file("resumed/state.ckpt"));
+    for (const std::string name : {"aux/w", "aux/b"})
+        EXPECT_TRUE(at::equal(resumed.optimizer.at(name), state.optimizer.at(name))) << name;
+    EXPECT_TRUE(at::equal(param(resumed.model->parameters(), "offset"),
+                          param(state.model->parameters(), "offset")));
+}
+
 }  // namespace
 }  // namespace pumeta

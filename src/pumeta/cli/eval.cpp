@@ -4,6 +4,7 @@
 #include "pumeta/cli/commands.h"
 #include "pumeta/cli/model_args.h"
 #include "pumeta/core/error.h"
+#include "pumeta/data/layout.h"
 #include "pumeta/eval/evaluate_cases.h"
 
 namespace pumeta::cli {
@@ -49,7 +50,7 @@ void add_eval_command(CLI::App& app, const std::string& command_line) {
     add_model_options(*command, args->model, /*oracle_unit=*/true);
     command->callback([args] {
         // The cases fix the ratio; --model (or the shipped model) must serve it.
-        const int64_t ratio = read_case_index(args->cases).at("ratio");
+        const int64_t ratio = layout::read_case_index(args->cases).at("ratio");
         if (args->model.ratio != 0 && args->model.ratio != ratio)
             throw_input_error(args->cases, "the cases are at ratio {}, not --ratio {}", ratio,
                               args->model.ratio);

@@ -8,8 +8,8 @@ namespace pumeta::cli {
 
 void add_model_options(CLI::App& command, ModelArgs& args, bool oracle_unit) {
     command.add_option("--model", args.model,
-                       "checkpoint (default: the shipped PU-GCN for the ratio, " +
-                           default_model_path() + " when no ratio is given)");
+                       "checkpoint (default: the shipped model for the ratio, named in " +
+                           models_dir() + "/defaults.json)");
     command.add_option("--ratio", args.ratio, "upsampling ratio (default: the model's)")
         ->check(integer_in(2, kMaxRatio));
     command.add_option("--seed", args.seed, "seed of the test-time downsampler")

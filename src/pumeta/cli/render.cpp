@@ -1,6 +1,6 @@
 // pumeta render CLOUD [MORE...] -o out.png: CPU point splatting with depth shading; several
 // clouds make a grid with one shared frame (input / prediction / GT side by side), and
-// --error-to GT colours each point by its distance to GT.
+// --error-to GT colours each point by its distance to GT (render/render.h error_colors).
 #include "pumeta/render/render.h"
 
 #include "pumeta/cli/commands.h"
@@ -50,13 +50,15 @@ void add_render_command(CLI::App& app) {
             reference = read_point_cloud(args->error_to, args->read).points;
         std::vector<Image> images;
         std::vector<std::string> labels;
+        std::vector<at::Tensor> colors(clouds.size());
+        if (reference.defined()) {
+            std::vector<at::Tensor> distances;
+            for (const at::Tensor& cloud : clouds)
+                distances.push_back(knn(reference, cloud, 1).sq_distances.squeeze(1).sqrt());
+            colors = error_colors(distances);
+        }
         for (size_t i = 0; i < clouds.size(); ++i) {
-            at::Tensor colors;
-            if (reference.defined()) {
-                at::Tensor d = knn(reference, clouds[i], 1).sq_distances.squeeze(1).sqrt();
-                colors = colormap(d, 0.0, 0.03 * options.frame.radius);
-            }
-            images.push_back(render_image(clouds[i], options, colors));
+            images.push_back(render_image(clouds[i], options, colors[i]));
             std::string name = args->inputs[i];
             labels.push_back(name.substr(name.find_last_of('/') + 1));
         }
@@ -66,94 +68,6 @@ void add_render_command(CLI::App& app) {
         }
         int columns = args->columns > 0 ? args->columns : static_cast<int>(images.size());
         write_png(args->output, render_grid(images, columns, labels));
-    });
-}
-
-}  // namespace pumeta::cli
-
-#include <filesystem>
-#include <fstream>
-#include <random>
-
-#include "pumeta/data/layout.h"
-#include "pumeta/data/patch_set.h"
-
-namespace pumeta::cli {
-
-namespace {
-
-/// GT (grey) with the input on top (orange), as one coloured cloud.
-Image render_pair(const at::Tensor& input, const at::Tensor& gt, const RenderOptions& base) {
-    RenderOptions options = base;
-    options.frame = fit_frame(gt);
-    at::Tensor points = at::cat({gt, input});
-    at::Tensor colors = at::cat({at::full({gt.size(0), 3}, 0.7f),
-                                 at::tensor({0.95f, 0.45f, 0.1f}).expand({input.size(0), 3})});
-    return render_image(points, options, colors);
-}
-
-}  // namespace
-
-void add_contact_sheet_command(CLI::App& app) {
-    struct Args {
-        std::string dataset, output;
-        int64_t ratio = 4;
-        uint64_t seed = 0;
-    };
-    auto args = std::make_shared<Args>();
-    CLI::App* command = app.add_subcommand(
-        "contact-sheet", "pictures of a dataset: 16 training patches and 8 test cases");
-    command->add_option("dataset", args->dataset, "a make-dataset directory")->required();
-    command->add_option("-o,--output", args->output, "output directory for the PNGs")->required();
-    command->add_option("--ratio", args->ratio, "which ratio's data to show")
-        ->check(integer_in(2, kMaxRatio));
-    command->add_option("--seed", args->seed, "which patches and cases are picked")
-        ->check(seed_value());
-    command->callback([args] {
-        namespace fs = std::filesystem;
-        fs::create_directories(args->output);
-        RenderOptions options;
-        options.width = options.height = 256;
-        std::mt19937_64 rng(args->seed);
-
-        PatchSet train =
-            load_patch_set(layout::patch_set_path(args->dataset, "train", args->ratio).string());
-        std::vector<Image> patches;
-        std::vector<std::string> labels;
-        for (int i = 0; i < 16; ++i) {
-            int64_t s = std::uniform_int_distribution<int64_t>(0, train.num_patches() - 1)(rng);
-            Batch pair = make_pair(train.gt_patch(s), train.patch_points, InputSampler::kFps, rng);
-            patches.push_back(render_pair(pair.input, pair.gt, options));
-            labels.push_back(train.ids[train.seeds[s][0].item<int64_t>()]);
-        }
-        write_png((fs::path(args->output) / "train-patches.png").string(),
-                  render_grid(patches, 4, labels));
-
-        std::vector<Image> cases;
-        std::vector<std::string> case_labels;
-        // Not kTestSets' order: the picks of the seeded generator follow this one.
-        for (const char* set :
-             {layout::kTestIndist, layout::kTestScans, layout::kTestHumans, layout::kTestAerial}) {
-            fs::path dir = layout::cases_dir(args->dataset, set, args->ratio);
-            if (!fs::exists(layout::case_index_path(dir))) continue;
-            auto index = nlohmann::json::parse(std::ifstream(layout::case_index_path(dir)));
-            auto list = index["cases"];
-            for (int i = 0; i < 2 && !list.empty(); ++i) {
-                auto pick = std::uniform_int_distribution<size_t>(0, list.size() - 1)(rng);
-                fs::path c = dir / list[pick]["name"].get<std::string>();
-                at::Tensor input = read_point_cloud((c / layout::kInputFile).string()).points;
-                at::Tensor gt = read_point_cloud((c / layout::kGtFile).string()).points;
-                RenderOptions o = options;
-                o.frame = fit_frame(gt);
-                cases.push_back(render_image(input, o));
-                cases.push_back(render_image(gt, o));
-                case_labels.push_back(std::string(set) + ": input");
-                case_labels.push_back(list[pick]["id"].get<std::string>() + ": GT");
-                list.erase(list.begin() + static_cast<std::ptrdiff_t>(pick));
-            }
-        }
-        write_png((fs::path(args->output) / "test-cases.png").string(),
-                  render_grid(cases, 4, case_labels));
     });
 }
 

@@ -6,6 +6,7 @@
 #include <array>
 #include <cstdint>
 #include <filesystem>
+#include <nlohmann/json.hpp>
 #include <string>
 
 namespace pumeta::layout {
@@ -36,6 +37,10 @@ std::filesystem::path cases_dir(const std::filesystem::path& dataset, const std:
 
 /// <cases_dir>/cases.json: the list of a cases directory's cases with their files.
 std::filesystem::path case_index_path(const std::filesystem::path& cases_dir);
+
+/// The index of a cases directory (its cases.json: {"set", "ratio", "cases": [...]});
+/// InputError naming the file when it is missing or malformed.
+nlohmann::json read_case_index(const std::filesystem::path& cases_dir);
 
 /// <dataset>/cases/<set>/meshes/<case>.ply: a case's normalised mesh, shared by its ratios.
 std::filesystem::path case_mesh_path(const std::filesystem::path& dataset, const std::string& set,

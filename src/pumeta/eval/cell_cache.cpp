@@ -88,7 +88,7 @@ std::string RunSpec::directory() const {
             name += std::isalnum(static_cast<unsigned char>(c)) ? char(std::tolower(c)) : '-';
     }
     if (method == "network") name += tta_steps > 0 ? ".tta" + std::to_string(tta_steps) : "";
-    if (tta_lr >= 0) name += fmt::format(".lr{:g}", tta_lr);
+    if (tta_lr) name += fmt::format(".lr{:g}", *tta_lr);
     if (max_cases >= 0) name += fmt::format(".first{}", max_cases);
     std::string cases = set + "-x" + std::to_string(ratio) + (noise.empty() ? "" : "-" + noise);
     return cases + "/" + name;
@@ -201,10 +201,10 @@ bool CellCache::evaluate(const std::string& key, const RunSpec& spec, const fs::
     InferenceModel model;
     if (spec.method == "zero-shot") model = load_inference_model(spec.model);
     if (spec.method == "network") {
-        model = load_inference_model(spec.model, spec.ratio);
+        model = std::move(serve(spec.model, spec.ratio).model);
         AdaptationOverrides overrides;
         overrides.steps = spec.tta_steps;
-        if (spec.tta_lr >= 0) overrides.step_size = spec.tta_lr;
+        overrides.step_size = spec.tta_lr;
         overrides.unit = parse_adaptation_unit(config_.tta_unit, "reproduce config: tta_unit");
         options.upsample.adaptation =
             adaptation_for(model.adaptation, model.meta_trained, overrides);
@@ -235,7 +235,9 @@ const nlohmann::json& CellCache::identity_of(const std::string& key, const RunSp
     nlohmann::json identity = {{"cases", cases.string()},
                                {"method", spec.method},
                                {"tta_steps", spec.tta_steps},
-                               {"tta_lr", spec.tta_lr},
+                               // -1 for the model's own step sizes: the form cells
+                               // evaluated before keep in their spec.json.
+                               {"tta_lr", spec.tta_lr.value_or(-1.0)},
                                {"tta_unit", config_.tta_unit},
                                {"noise", spec.noise},
                                {"seed", config_.seed},

@@ -24,11 +24,11 @@ struct RunSpec {
     std::string method = "network";  // network, midpoint, input, floor
     std::string model;               // network: checkpoint file
     int64_t tta_steps = 0;
-    double tta_lr = -1;          // < 0: the model's own step sizes
-    std::string noise;           // "" = clean input
-    std::string label, command;  // external: the baseline's label and command ({bindir} kept)
-    int64_t max_cases = -1;      // < 0: the config's max_cases
-    ZeroShotBaseline zero_shot;  // method zero-shot (model: the architecture's checkpoint)
+    std::optional<double> tta_lr;  // empty: the model's own step sizes
+    std::string noise;             // "" = clean input
+    std::string label, command;    // external: the baseline's label and command ({bindir} kept)
+    int64_t max_cases = -1;        // < 0: the config's max_cases
+    ZeroShotBaseline zero_shot;    // method zero-shot (model: the architecture's checkpoint)
 
     /// The cell's directory under runs/: "<set>-x<r>[-<noise>]/<method and options>".
     std::string directory() const;

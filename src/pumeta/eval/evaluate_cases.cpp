@@ -81,27 +81,9 @@ at::Tensor run_external(const std::string& command_template, const at::Tensor& i
 
 }  // namespace
 
-nlohmann::json read_case_index(const std::string& cases_dir) {
-    fs::path index_file = layout::case_index_path(cases_dir);
-    if (!fs::exists(index_file))
-        throw_input_error(cases_dir, "no cases.json: not a test-case directory of make-dataset");
-    nlohmann::json index;
-    try {
-        index = nlohmann::json::parse(std::ifstream(index_file));
-    } catch (const nlohmann::json::parse_error& e) {
-        throw_input_error(index_file.string(), "invalid JSON at byte {}", e.byte);
-    } catch (const nlohmann::json::exception& e) {  // e.g. a number beyond double's range
-        throw_input_error(index_file.string(), "invalid JSON: {}", e.what());
-    }
-    if (!index.is_object() || !index.contains("ratio") || !index["ratio"].is_number_integer() ||
-        index["ratio"].get<int64_t>() < 1 || !index.contains("cases") || !index["cases"].is_array())
-        throw_input_error(index_file.string(), "expected {{\"ratio\": R, \"cases\": [...]}}");
-    return index;
-}
-
 nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* model,
                               const EvalOptions& options, const std::string& out_dir) {
-    const nlohmann::json index = read_case_index(cases_dir);
+    const nlohmann::json index = layout::read_case_index(cases_dir);
     if ((options.method == "network" || options.method == "zero-shot") && !model)
         throw_input_error("eval", "method '{}' needs --model", options.method);
     int64_t ratio = index.at("ratio");

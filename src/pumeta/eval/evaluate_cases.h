@@ -44,10 +44,6 @@ struct EvalOptions {
     bool resume = false;
 };
 
-/// The index of a cases/<set>/x<r> directory (its cases.json: {"set", "ratio", "cases"});
-/// InputError naming the file when it is missing or malformed.
-nlohmann::json read_case_index(const std::string& cases_dir);
-
 /// cases_dir: a cases/<set>/x<r> directory holding cases.json. model may be null unless the
 /// method is "network" or "zero-shot"; it must serve the cases' ratio (options.upsample.ratio
 /// is set to it). Returns the summary (also written to out_dir/summary.json;

@@ -230,11 +230,11 @@ ReportSummary write_report(const std::string& results_dir, const std::string& ou
                 labels.push_back(short_label(m.label));
             }
             if (clouds.empty()) continue;
-            double hi = at::quantile(at::cat(errors).to(at::kDouble), 0.95).item<double>();
+            std::vector<at::Tensor> colors = error_colors(errors);
             std::vector<Image> top, bottom;
             for (size_t i = 0; i < clouds.size(); ++i) {
                 top.push_back(render_image(clouds[i], options));
-                bottom.push_back(render_image(clouds[i], options, colormap(errors[i], 0, hi)));
+                bottom.push_back(render_image(clouds[i], options, colors[i]));
             }
             top.push_back(render_image(gt, options));
             bottom.push_back(Image(size, size));

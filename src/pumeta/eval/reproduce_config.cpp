@@ -115,12 +115,13 @@ nlohmann::json ReproduceConfig::to_json() const {
     return j;
 }
 
-double ReproduceConfig::tta_lr_for(const std::string& backbone, int64_t ratio) const {
+std::optional<double> ReproduceConfig::tta_lr_for(const std::string& backbone,
+                                                  int64_t ratio) const {
     for (const std::string& key : {backbone + "-x" + std::to_string(ratio), backbone}) {
         auto it = tta_lr_without_meta.find(key);
         if (it != tta_lr_without_meta.end()) return it->second;
     }
-    return -1;
+    return std::nullopt;
 }
 
 std::string ReproduceConfig::label_of(const std::string& backbone) const {

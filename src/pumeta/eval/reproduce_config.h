@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <map>
 #include <nlohmann/json.hpp>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -86,8 +87,8 @@ struct ReproduceConfig {
     ZeroShotBaseline zero_shot;
     std::string budget = "full";
 
-    /// tta_lr_without_meta for a backbone at a ratio, or -1.
-    double tta_lr_for(const std::string& backbone, int64_t ratio) const;
+    /// tta_lr_without_meta for a backbone at a ratio, or none (the model's own).
+    std::optional<double> tta_lr_for(const std::string& backbone, int64_t ratio) const;
 
     /// The label of a backbone's rows (backbone_labels, else its name).
     std::string label_of(const std::string& backbone) const;

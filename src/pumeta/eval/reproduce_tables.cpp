@@ -18,7 +18,8 @@ RunSpec TablePass::spec(const std::string& set, int64_t ratio, const std::string
 }
 
 RunSpec TablePass::network_spec(const std::string& set, int64_t ratio, const std::string& model,
-                                int64_t steps, double lr, const std::string& noise) const {
+                                int64_t steps, std::optional<double> lr,
+                                const std::string& noise) const {
     RunSpec s = spec(set, ratio, "network");
     s.model = model;
     s.tta_steps = steps;
@@ -28,7 +29,8 @@ RunSpec TablePass::network_spec(const std::string& set, int64_t ratio, const std
 }
 
 const RunResult* TablePass::network(const std::string& set, int64_t ratio, const std::string& model,
-                                    int64_t steps, double lr, const std::string& noise) {
+                                    int64_t steps, std::optional<double> lr,
+                                    const std::string& noise) {
     return &cells.get(network_spec(set, ratio, model, steps, lr, noise));
 }
 
@@ -175,12 +177,13 @@ void write_table2(TablePass& pass) {
         if (!plain) continue;
         TableWriter::Row base{config.label_of(backbone), {}, {}};
         for (const std::string& level : levels)
-            base.runs.push_back(pass.network(set, r, *plain, 0, -1, noise_of(level)));
+            base.runs.push_back(pass.network(set, r, *plain, 0, std::nullopt, noise_of(level)));
         rows.push_back(base);
         if (!meta) continue;
         TableWriter::Row ours{config.label_of(backbone) + " + ours", {}, base.runs};
         for (const std::string& level : levels)
-            ours.runs.push_back(pass.network(set, r, *meta, config.tta_steps, -1, noise_of(level)));
+            ours.runs.push_back(
+                pass.network(set, r, *meta, config.tta_steps, std::nullopt, noise_of(level)));
         rows.push_back(ours);
     }
     pass.writer.table("Table II", levels, {kCd}, rows, pass.tables["table2"]);
@@ -242,7 +245,7 @@ void write_table4(TablePass& pass) {
             pass.per_set([&](const std::string& set) { return pass.network(set, r, *plain, 0); }),
             {}};
         rows.push_back(base);
-        double lr = config.tta_lr_for(backbone, r);
+        std::optional<double> lr = config.tta_lr_for(backbone, r);
         TableWriter::Row tta{label + " + TTA w/o meta", pass.per_set([&](const std::string& set) {
                                  return pass.network(set, r, *plain, config.tta_steps, lr);
                              }),

@@ -36,9 +36,11 @@ struct TablePass {
 
     RunSpec spec(const std::string& set, int64_t ratio, const std::string& method) const;
     RunSpec network_spec(const std::string& set, int64_t ratio, const std::string& model,
-                         int64_t steps, double lr = -1, const std::string& noise = "") const;
+                         int64_t steps, std::optional<double> lr = std::nullopt,
+                         const std::string& noise = "") const;
     const RunResult* network(const std::string& set, int64_t ratio, const std::string& model,
-                             int64_t steps, double lr = -1, const std::string& noise = "");
+                             int64_t steps, std::optional<double> lr = std::nullopt,
+                             const std::string& noise = "");
     /// One run per set of config.sets (the column groups of Tables I and IV).
     std::vector<const RunResult*> per_set(
         const std::function<const RunResult*(const std::string&)>& run) const;

@@ -5,6 +5,8 @@
 #include <cstdlib>
 #include <filesystem>
 
+#include "pumeta/core/error.h"
+#include "pumeta/geometry/io/file.h"
 #include "pumeta/inference/upsample.h"
 #include "pumeta/models/checkpoint.h"
 
@@ -51,10 +53,22 @@ ServedModel serve(const std::string& path, int64_t ratio) {
     return served;
 }
 
-std::string default_model_path(const std::string& name) {
-    if (const char* dir = std::getenv("PUMETA_MODELS"))
-        return (std::filesystem::path(dir) / name).string();
-    return (std::filesystem::path(PUMETA_SOURCE_DIR) / "models" / name).string();
+std::string models_dir() {
+    if (const char* dir = std::getenv("PUMETA_MODELS")) return dir;
+    return (std::filesystem::path(PUMETA_SOURCE_DIR) / "models").string();
+}
+
+std::string default_model_family() {
+    const std::filesystem::path file = std::filesystem::path(models_dir()) / "defaults.json";
+    nlohmann::json defaults;
+    try {
+        defaults = nlohmann::json::parse(io::read_whole_file(file.string()));
+    } catch (const nlohmann::json::exception& e) {
+        throw_input_error(file.string(), "invalid JSON: {}", e.what());
+    }
+    if (!defaults.is_object() || !defaults.contains("family") || !defaults["family"].is_string())
+        throw_input_error(file.string(), "expected {{\"family\": NAME}}");
+    return defaults["family"];
 }
 
 std::string model_file_for_ratio(const std::string& dir, const std::string& name, int64_t ratio,
@@ -71,10 +85,13 @@ std::string model_file_for_ratio(const std::string& dir, const std::string& name
 }
 
 std::string default_model_for_ratio(int64_t ratio) {
-    if (ratio <= 1) return default_model_path();
-    std::string dir = std::filesystem::path(default_model_path()).parent_path().string();
-    std::string found = model_file_for_ratio(dir, "pugcn", ratio);
-    return found.empty() ? default_model_path() : found;
+    const std::string family = default_model_family();
+    const std::string fallback = (std::filesystem::path(models_dir()) /
+                                  (family + "-x" + std::to_string(kDefaultRatio) + ".pt"))
+                                     .string();
+    if (ratio <= 1) return fallback;
+    std::string found = model_file_for_ratio(models_dir(), family, ratio);
+    return found.empty() ? fallback : found;
 }
 
 }  // namespace pumeta

@@ -35,18 +35,22 @@ struct ServedModel {
 };
 
 /// The one place that decides which model serves which output ratio: `path`, or when empty the
-/// shipped PU-GCN for `ratio` (default_model_for_ratio); `ratio` 0 means the model's own. The
-/// model is rebuilt at the ratio when its weights serve any ratio; otherwise the ratio must be
+/// shipped default model for `ratio` (default_model_for_ratio); `ratio` 0 means the model's own.
+/// The model is rebuilt at the ratio when its weights serve any ratio; otherwise the ratio must be
 /// a power of the model's (applied repeatedly), else an InputError naming both.
 ServedModel serve(const std::string& path, int64_t ratio);
 
-/// The shipped model used when --model is not given: $PUMETA_MODELS/<name> if set, else the
-/// source tree's models/<name>.
-std::string default_model_path(const std::string& name = "pugcn-x4.pt");
+/// The directory of the shipped models: $PUMETA_MODELS if set, else the source tree's models/.
+std::string models_dir();
 
-/// The shipped PU-GCN for an output ratio (0 = the default 4×): pugcn-x<ratio>.pt when it
-/// exists, else the model of the largest shipped ratio b with ratio a power of b (16: the 4×
-/// model twice), else pugcn-x4.pt (whose ratio check then names the problem).
+/// The family of the shipped default models: "family" of models_dir()/defaults.json
+/// (InputError naming the file when it is missing or malformed).
+std::string default_model_family();
+
+/// The shipped model for an output ratio (0 = the default kDefaultRatio):
+/// <family>-x<ratio>.pt when it exists, else the model of the largest shipped ratio b with
+/// ratio a power of b (16: the 4× model twice), else <family>-x4.pt (whose ratio check then
+/// names the problem).
 std::string default_model_for_ratio(int64_t ratio);
 
 /// The model file for an output ratio in `dir`: <name>-x<ratio><suffix>.pt when it exists,

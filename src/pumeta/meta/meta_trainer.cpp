@@ -40,6 +40,8 @@ MetaTrainConfig MetaTrainConfig::from_json(const nlohmann::json& j) {
     read_fields(j, "meta-train config", [&](auto&& visit) { visit_fields(c, visit); });
     if (c.init.empty()) throw_input_error("meta-train config", "'init' is required");
     check_run_settings(c, "meta-train config", "tasks_per_batch", c.tasks_per_batch);
+    if (c.outer_lr_decay_steps < 1)
+        throw_input_error("meta-train config", "'outer_lr_decay_steps' must be >= 1");
     return c;
 }
 
@@ -142,9 +144,8 @@ class MetaStage final : public RunStage {
 
     StepOutcome step(int64_t step, const std::function<bool()>& wants_stop) override {
         Batch batch = data_.loader.next();
-        outer_.set_lr(config_.outer_lr *
-                      std::pow(config_.outer_lr_decay,
-                               static_cast<double>(step) / config_.outer_lr_decay_steps));
+        outer_.set_lr(decayed_lr(config_.outer_lr, config_.outer_lr_decay,
+                                 config_.outer_lr_decay_steps, step));
         last_step_ = meta_gradient(
             model_, batch.input, batch.gt, config_.meta, step_sizes_,
             config_.seed * 1000003 + static_cast<uint64_t>(step) * 64 + first_task_, step);

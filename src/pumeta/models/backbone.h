@@ -16,9 +16,6 @@
 
 namespace pumeta {
 
-/// A point-cloud upsampling network whose forward pass can run from its own parameters or from
-/// an explicit ParamMap with the same names (MAML's fast weights θ'), so that adapted weights
-/// need no module copies and the inner loop stays twice differentiable.
 /// A loss as named scalar terms, in the order they are summed.
 using LossTerms = std::vector<std::pair<std::string, at::Tensor>>;
 
@@ -29,6 +26,10 @@ inline at::Tensor sum_of(const LossTerms& terms) {
     return total;
 }
 
+/// A point-cloud upsampling network whose forward pass can run from its own parameters or from
+/// an explicit ParamMap with the same names (MAML's fast weights θ'), so that adapted weights
+/// need no module copies and the inner loop stays twice differentiable. Every backbone passes
+/// the conformance suite (tests/models/conformance.cpp; docs/design.md, "Backbones").
 class Backbone {
   public:
     virtual ~Backbone() = default;
@@ -86,6 +87,30 @@ class Backbone {
     /// loss, to update buffers (running statistics). Default: nothing.
     virtual void update_buffers(const at::Tensor& input, const ParamMap& params) {}
 
+    /// Networks trained alongside the backbone with their own loss and optimiser (PU-GAN's
+    /// discriminator): fresh parameters drawn from `seed`, or none (the default) for a
+    /// backbone trained on its loss alone. Supervised training keeps them in the run state
+    /// (resumable), never in the model file.
+    virtual ParamMap make_auxiliary(uint64_t seed) const { return {}; }
+    /// The supervised training loss with auxiliary networks: loss_terms plus the terms they
+    /// contribute (e.g. the adversarial one), differentiable w.r.t. `params`. Default: the
+    /// terms of loss_terms.
+    virtual LossTerms training_terms(const at::Tensor& input, const at::Tensor& target,
+                                     const ParamMap& params, const ParamMap& auxiliary,
+                                     int64_t step) const {
+        return loss_terms(input, target, params, step);
+    }
+    /// The auxiliary networks' own loss for a batch (e.g. the discriminator's on `target`
+    /// against the backbone's output from `input`), differentiable w.r.t. `auxiliary` only;
+    /// minimised by their own Adam after each step of the backbone.
+    virtual at::Tensor auxiliary_loss(const at::Tensor& input, const at::Tensor& target,
+                                      const ParamMap& params, const ParamMap& auxiliary,
+                                      int64_t step) const {
+        return at::Tensor();
+    }
+    /// The learning rate of the auxiliary networks' Adam at `step`.
+    virtual double auxiliary_lr(int64_t step) const { return 1e-4; }
+
     /// Moves parameters and buffers to a device ("cpu", "cuda").
     void to(const std::string& device);
 
@@ -101,6 +126,19 @@ std::unique_ptr<Backbone> make_backbone(const nlohmann::json& config);
 using BackboneFactory = std::function<std::unique_ptr<Backbone>(const nlohmann::json&)>;
 
 /// Adds a backbone kind to the registry (called once per backbone in registry.cpp).
-void register_backbone(const std::string& name, BackboneFactory factory);
+/// `small_config` is the kind's smallest useful config ({"backbone": name, ...}; a model that
+/// builds and runs in milliseconds on one core), kept for the backbone conformance suite
+/// (tests/models/conformance.cpp runs every registered kind through the Backbone contract
+/// with it) and for quick experiments; null for none, which that suite reports as a failure.
+/// InternalError for a name registered twice or a small config of another kind.
+void register_backbone(const std::string& name, BackboneFactory factory,
+                       nlohmann::json small_config = nullptr);
+
+/// Names of the registered backbone kinds, sorted.
+std::vector<std::string> registered_backbones();
+
+/// The small config registered with kind `name` (null when it has none); InputError for an
+/// unknown kind.
+nlohmann::json small_backbone_config(const std::string& name);
 
 }  // namespace pumeta

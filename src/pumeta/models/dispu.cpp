@@ -422,4 +422,21 @@ std::unique_ptr<Backbone> make_dispu(const nlohmann::json& config) {
     return std::make_unique<DisPu>(DisPuOptions::from_json(config));
 }
 
+nlohmann::json dispu_small_config() {
+    return {{"backbone", "dispu"},
+            {"ratio", 4},
+            {"k", 4},
+            {"growth", 4},
+            {"blocks", 2},
+            {"expand_channels", 8},
+            {"feature_channels", 8},
+            {"regressor_channels", 8},
+            {"regressor_bottleneck", 4},
+            {"refiner_channels", 4},
+            {"refiner_out_channels", 8},
+            {"attention_channels", 4},
+            {"patch_size", 16},
+            {"seed", 3}};
+}
+
 }  // namespace pumeta

@@ -147,4 +147,9 @@ at::Tensor dispu_grid(int64_t ratio);
 /// The registry's factory: DisPu(DisPuOptions::from_json(config)).
 std::unique_ptr<Backbone> make_dispu(const nlohmann::json& config);
 
+/// Dis-PU's smallest useful config (widths 4-8, 2 blocks, k 4 on 16-point patches, x4),
+/// registered with the kind for the backbone conformance suite and quick experiments
+/// (register_backbone).
+nlohmann::json dispu_small_config();
+
 }  // namespace pumeta

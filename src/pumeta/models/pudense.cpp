@@ -361,4 +361,9 @@ std::unique_ptr<Backbone> make_pudense(const nlohmann::json& config) {
     return std::make_unique<PuDense>(PuDenseOptions::from_json(config));
 }
 
+nlohmann::json pudense_small_config() {
+    return {{"backbone", "pudense"}, {"ratio", 4},       {"channels", {4, 4, 8, 8, 8}},
+            {"resolution", 16},      {"patch_size", 64}, {"seed", 3}};
+}
+
 }  // namespace pumeta

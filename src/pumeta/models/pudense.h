@@ -129,4 +129,11 @@ class PuDense : public Backbone {
 /// The registry's factory: PuDense(PuDenseOptions::from_json(config)).
 std::unique_ptr<Backbone> make_pudense(const nlohmann::json& config);
 
+/// PU-Dense's smallest useful config (channels 4-8, 16 voxels per unit length, 64-point
+/// patches, x4), registered with the kind for the backbone conformance suite and quick
+/// experiments (register_backbone). Not smaller patches: the coarsest level of a 32-point
+/// patch has 2-3 sites, whose batch norm makes the meta-objective too rough for finite
+/// differences.
+nlohmann::json pudense_small_config();
+
 }  // namespace pumeta

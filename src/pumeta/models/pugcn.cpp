@@ -163,4 +163,17 @@ std::unique_ptr<Backbone> make_pugcn(const nlohmann::json& config) {
     return std::make_unique<PuGcn>(PuGcnOptions::from_json(config));
 }
 
+nlohmann::json pugcn_small_config() {
+    return {{"backbone", "pugcn"},
+            {"ratio", 4},
+            {"channels", 4},
+            {"k", 4},
+            {"dilation", 2},
+            {"upsample_channels", 4},
+            {"reconstruction_channels", 4},
+            {"patch_size", 16},
+            {"downsampler", "random"},
+            {"seed", 3}};
+}
+
 }  // namespace pumeta

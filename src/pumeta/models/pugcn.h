@@ -72,4 +72,8 @@ class PuGcn : public Backbone {
 /// The registry's factory: PuGcn(PuGcnOptions::from_json(config)).
 std::unique_ptr<Backbone> make_pugcn(const nlohmann::json& config);
 
+/// PU-GCN's smallest useful config (width 4, k 4 on 16-point patches, x4), registered with
+/// the kind for the backbone conformance suite and quick experiments (register_backbone).
+nlohmann::json pugcn_small_config();
+
 }  // namespace pumeta

@@ -1,6 +1,6 @@
-// The backbone registry: name -> factory. The library is static, so registration happens in
-// register_builtin_backbones(), called once on first use, not from static initialisers
-// (which the linker would drop along with unreferenced object files).
+// The backbone registry: name -> factory and small config. The library is static, so
+// registration happens in register_builtin_backbones(), called once on first use, not from
+// static initialisers (which the linker would drop along with unreferenced object files).
 #include <map>
 #include <mutex>
 
@@ -19,15 +19,20 @@ std::mutex& registry_mutex() {
     return mutex;
 }
 
-std::map<std::string, BackboneFactory>& registry() {
-    static std::map<std::string, BackboneFactory> factories;
-    return factories;
+struct Registration {
+    BackboneFactory factory;
+    nlohmann::json small_config;
+};
+
+std::map<std::string, Registration>& registry() {
+    static std::map<std::string, Registration> kinds;
+    return kinds;
 }
 
 void register_builtin_backbones() {
-    register_backbone("pugcn", make_pugcn);
-    register_backbone("dispu", make_dispu);
-    register_backbone("pudense", make_pudense);
+    register_backbone("pugcn", make_pugcn, pugcn_small_config());
+    register_backbone("dispu", make_dispu, dispu_small_config());
+    register_backbone("pudense", make_pudense, pudense_small_config());
 }
 
 void ensure_builtins_registered() {
@@ -37,10 +42,32 @@ void ensure_builtins_registered() {
 
 }  // namespace
 
-void register_backbone(const std::string& name, BackboneFactory factory) {
+void register_backbone(const std::string& name, BackboneFactory factory,
+                       nlohmann::json small_config) {
+    if (!small_config.is_null() &&
+        (!small_config.is_object() || !small_config.contains("backbone") ||
+         small_config["backbone"] != name))
+        throw InternalError("small config of backbone '" + name + "' is not {\"backbone\": \"" +
+                            name + "\", ...}: " + small_config.dump());
     std::lock_guard<std::mutex> lock(registry_mutex());
-    if (!registry().emplace(name, std::move(factory)).second)
+    if (!registry().emplace(name, Registration{std::move(factory), std::move(small_config)}).second)
         throw InternalError("backbone '" + name + "' registered twice");
+}
+
+std::vector<std::string> registered_backbones() {
+    ensure_builtins_registered();
+    std::lock_guard<std::mutex> lock(registry_mutex());
+    std::vector<std::string> names;
+    for (const auto& entry : registry()) names.push_back(entry.first);
+    return names;
+}
+
+nlohmann::json small_backbone_config(const std::string& name) {
+    ensure_builtins_registered();
+    std::lock_guard<std::mutex> lock(registry_mutex());
+    auto it = registry().find(name);
+    if (it == registry().end()) throw_input_error("backbone", "unknown backbone '{}'", name);
+    return it->second.small_config;
 }
 
 std::unique_ptr<Backbone> make_backbone(const nlohmann::json& config) {
@@ -57,7 +84,7 @@ std::unique_ptr<Backbone> make_backbone(const nlohmann::json& config) {
             for (const auto& entry : registry()) known += (known.empty() ? "" : ", ") + entry.first;
             throw_input_error("backbone config", "unknown backbone '{}' (known: {})", name, known);
         }
-        factory = it->second;
+        factory = it->second.factory;
     }
     return factory(config);
 }

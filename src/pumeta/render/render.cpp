@@ -371,4 +371,13 @@ at::Tensor colormap(const at::Tensor& values) {
     return colormap(values, finite.min().item<double>(), finite.max().item<double>());
 }
 
+std::vector<at::Tensor> error_colors(const std::vector<at::Tensor>& distances) {
+    if (distances.empty()) return {};
+    const at::Tensor all = at::cat(distances).to(at::kDouble);
+    const double hi = all.numel() > 0 ? at::quantile(all, 0.95).item<double>() : 0.0;
+    std::vector<at::Tensor> colors;
+    for (const at::Tensor& d : distances) colors.push_back(colormap(d, 0, hi));
+    return colors;
+}
+
 }  // namespace pumeta

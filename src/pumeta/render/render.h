@@ -111,4 +111,11 @@ at::Tensor colormap(const at::Tensor& values, double lo, double hi);
 /// colormap over the finite values' own range (all dark when that range is empty).
 at::Tensor colormap(const at::Tensor& values);
 
+/// The one colouring of errors shared by every picture that compares clouds (`pumeta render
+/// --error-to`, the report's figures): distances float32 [N_i] per cloud -> colours
+/// float32 [N_i,3], on one scale from 0 (dark) to the 95th percentile of all distances
+/// together (yellow), so that clouds side by side compare and a few outliers do not wash out
+/// the rest.
+std::vector<at::Tensor> error_colors(const std::vector<at::Tensor>& distances);
+
 }  // namespace pumeta

@@ -1,9 +1,17 @@
 #include "pumeta/train/run_settings.h"
 
+#include <algorithm>
+#include <cmath>
+
 #include "pumeta/core/error.h"
 #include "pumeta/data/patch_set.h"
 
 namespace pumeta {
+
+double decayed_lr(double lr, double rate, int64_t steps, int64_t step, double floor) {
+    return std::max(lr * std::pow(rate, static_cast<double>(step) / static_cast<double>(steps)),
+                    floor);
+}
 
 void check_run_settings(const RunSettings& s, const std::string& context,
                         const std::string& batch_name, int64_t batch) {

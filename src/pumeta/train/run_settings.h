@@ -43,6 +43,10 @@ void visit_run_settings(Self& s, Visit&& visit) {
     visit("distributed", s.distributed);
 }
 
+/// An exponentially decaying learning rate, the schedule of every run:
+/// max(floor, lr · rate^(step / steps)).
+double decayed_lr(double lr, double rate, int64_t steps, int64_t step, double floor = 0);
+
 /// InputError naming `context` unless train_data and run_dir are given, steps and the
 /// cadences are valid, the sampler is known, and `batch` (the field `batch_name`) is at least 1
 /// and splits evenly over the processes.

@@ -45,6 +45,7 @@ TrainConfig TrainConfig::from_json(const nlohmann::json& j) {
     read_fields(j, "train config", [&](auto&& visit) { visit_fields(c, visit); });
     check_run_settings(c, "train config", "batch_size", c.batch_size);
     if (!(c.lr > 0)) throw_input_error("train config", "'lr' must be positive");
+    if (c.lr_decay_steps < 1) throw_input_error("train config", "'lr_decay_steps' must be >= 1");
     return c;
 }
 
@@ -53,11 +54,6 @@ nlohmann::json TrainConfig::to_json() const {
 }
 
 namespace {
-
-double learning_rate(const TrainConfig& c, int64_t step) {
-    double lr = c.lr * std::pow(c.lr_decay_rate, static_cast<double>(step) / c.lr_decay_steps);
-    return std::max(lr, c.lr_min);
-}
 
 /// Validation CD on this rank's shard of the validation set, combined over all ranks.
 double distributed_validation_cd(const Backbone& model, const ValidationSet& val,
@@ -122,8 +118,78 @@ void initialise_from(Backbone& model, const std::string& path, bool log) {
             fresh.empty() ? std::string("none") : fmt::format("{}", fmt::join(fresh, ", ")));
 }
 
-/// Supervised pretraining's step (Adam on the backbone's loss) and validation (CD on
-/// held-out patches).
+/// The networks a backbone trains alongside itself (Backbone::make_auxiliary), with their own
+/// Adam; kept in the run state under "aux/" (parameters) and "aux-adam/" (moments), never in
+/// the model file.
+class Auxiliary {
+  public:
+    Auxiliary(const Backbone& model, uint64_t seed)
+        : params_(model.make_auxiliary(seed)), adam_(params_, AdamOptions{model.auxiliary_lr(0)}) {}
+
+    bool empty() const { return params_.empty(); }
+    const ParamMap& parameters() const { return params_; }
+
+    /// Restores parameters and moments from a resumed state's optimiser tensors.
+    void load(const ParamMap& optimizer, const nlohmann::json& info) {
+        if (empty()) return;
+        ParamMap moments;
+        at::NoGradGuard no_grad;
+        for (const auto& [name, t] : optimizer) {
+            if (name.rfind(kParams, 0) == 0) param(params_, name.substr(kParams.size())).copy_(t);
+            if (name.rfind(kMoments, 0) == 0) moments[name.substr(kMoments.size())] = t;
+        }
+        adam_.load_state(moments, info.at("aux_adam"));
+    }
+
+    void save(ParamMap& tensors, nlohmann::json& info) const {
+        if (empty()) return;
+        for (const auto& [name, p] : params_) tensors[kParams + name] = p.detach();
+        for (const auto& [name, t] : adam_.state()) tensors[kMoments + name] = t;
+        info["aux_adam"] = adam_.state_info();
+    }
+
+    /// What start_ranks_in_sync copies from rank 0.
+    void add_to(ParamMap& state) {
+        for (auto& [name, p] : params_) state[kParams + name] = p;
+        for (auto& [name, t] : adam_.state()) state[kMoments + name] = t;
+    }
+
+    /// One Adam step on the auxiliary loss of the batch, averaged over the ranks; its value.
+    double step(const Backbone& model, const Batch& batch, int64_t step, ProcessGroup& group) {
+        adam_.set_lr(model.auxiliary_lr(step));
+        at::Tensor loss =
+            model.auxiliary_loss(batch.input, batch.gt, model.parameters(), params_, step);
+        ParamMap grads = gradients(loss, params_);
+        double value = loss.item<double>();
+        if (group.enabled()) {
+            ParamMap packet = grads;
+            packet["~loss"] = at::scalar_tensor(value, grads.begin()->second.options());
+            ParamMap mean = group.average(packet);
+            for (auto& [name, g] : grads) g = mean.at(name);
+            value = mean.at("~loss").item<double>();
+        }
+        adam_.step(grads);
+        return value;
+    }
+
+  private:
+    inline static const std::string kParams = "aux/";
+    inline static const std::string kMoments = "aux-adam/";
+    ParamMap params_;
+    Adam adam_;
+};
+
+/// Splits a resumed state's optimiser tensors: the backbone's Adam's, without the auxiliary
+/// networks' ("aux/", "aux-adam/").
+ParamMap backbone_moments(const ParamMap& optimizer) {
+    ParamMap moments;
+    for (const auto& [name, t] : optimizer)
+        if (name.rfind("aux/", 0) != 0 && name.rfind("aux-adam/", 0) != 0) moments[name] = t;
+    return moments;
+}
+
+/// Supervised pretraining's step (Adam on the backbone's loss, then the auxiliary networks'
+/// step when the backbone has any) and validation (CD on held-out patches).
 class SupervisedStage final : public RunStage {
   public:
     SupervisedStage(const TrainConfig& config, Backbone& model, ProcessGroup& group,
@@ -132,10 +198,12 @@ class SupervisedStage final : public RunStage {
           model_(model),
           group_(group),
           data_(config, config.batch_size, config.val_patches, model, group),
-          adam_(model.parameters(), AdamOptions{config.lr}) {
+          adam_(model.parameters(), AdamOptions{config.lr}),
+          auxiliary_(model, config.seed) {
         int64_t step = 0;
         if (!opened.info.is_null()) {
-            adam_.load_state(opened.optimizer, opened.info.at("adam"));
+            adam_.load_state(backbone_moments(opened.optimizer), opened.info.at("adam"));
+            auxiliary_.load(opened.optimizer, opened.info);
             step = opened.info.at("step");
             if (opened.info.value("last_val_cd", nlohmann::json()).is_number())
                 last_val_ = opened.info["last_val_cd"];
@@ -143,6 +211,7 @@ class SupervisedStage final : public RunStage {
         }
         ParamMap adam_state;
         for (auto& [name, t] : adam_.state()) adam_state["adam/" + name] = t;
+        auxiliary_.add_to(adam_state);
         start_ranks_in_sync(group, model,
                             {{"step", step},
                              {"loader_position", data_.loader.position()},
@@ -152,9 +221,13 @@ class SupervisedStage final : public RunStage {
 
     StepOutcome step(int64_t step, const std::function<bool()>& wants_stop) override {
         Batch batch = data_.loader.next();
-        adam_.set_lr(learning_rate(config_, step));
+        adam_.set_lr(decayed_lr(config_.lr, config_.lr_decay_rate, config_.lr_decay_steps, step,
+                                config_.lr_min));
         model_.update_buffers(batch.input, model_.parameters());
-        LossTerms terms = model_.loss_terms(batch.input, batch.gt, model_.parameters(), step);
+        LossTerms terms = auxiliary_.empty()
+                              ? model_.loss_terms(batch.input, batch.gt, model_.parameters(), step)
+                              : model_.training_terms(batch.input, batch.gt, model_.parameters(),
+                                                      auxiliary_.parameters(), step);
         at::Tensor loss = sum_of(terms);
         ParamMap grads = gradients(loss, model_.parameters());
         double loss_value = loss.item<double>();
@@ -163,6 +236,8 @@ class SupervisedStage final : public RunStage {
         bool stop = wants_stop();
         if (group_.enabled()) all_reduce_step(group_, grads, model_.buffers(), loss_value, stop);
         adam_.step(grads);
+        if (!auxiliary_.empty())
+            auxiliary_loss_sum_ += auxiliary_.step(model_, batch, step, group_);
         loss_sum_ += loss_value;
         ++loss_count_;
         return {loss_value, stop, fmt::format("loss {:.3e} val {:.3e}", loss_value, last_val_)};
@@ -175,6 +250,8 @@ class SupervisedStage final : public RunStage {
             fields["loss_" + name] = sum / loss_count_;
             sum = 0;
         }
+        if (!auxiliary_.empty()) fields["auxiliary_loss"] = auxiliary_loss_sum_ / loss_count_;
+        auxiliary_loss_sum_ = 0;
         loss_sum_ = 0;
         loss_count_ = 0;
         return fields;
@@ -192,6 +269,7 @@ class SupervisedStage final : public RunStage {
     void save_state(ParamMap& tensors, nlohmann::json& info) const override {
         tensors = adam_.state();
         info["adam"] = adam_.state_info();
+        auxiliary_.save(tensors, info);
         info["last_val_cd"] = last_val_;
         info["loader_position"] = data_.loader.position();
     }
@@ -211,8 +289,9 @@ class SupervisedStage final : public RunStage {
     ProcessGroup& group_;
     RunData data_;
     Adam adam_;
+    Auxiliary auxiliary_;
     double last_val_ = std::numeric_limits<double>::infinity();
-    double loss_sum_ = 0;
+    double loss_sum_ = 0, auxiliary_loss_sum_ = 0;
     std::map<std::string, double> term_sums_;  // of backbones whose loss has several terms
     int64_t loss_count_ = 0;
 };
