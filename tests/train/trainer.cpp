@@ -229,6 +229,16 @@ TEST(Train, ResumeRefusesAChangedConfigUnlessTheFieldIsAllowed) {
     EXPECT_EQ(train(moved, /*resume=*/true, 0, {"steps"}).steps, 5);
 }
 
+TEST(Train, ResumeComparesTheFieldsBothConfigsHave) {
+    const nlohmann::json stored = {{"steps", 10}, {"meta", {{"inner_lr", 0.01}, {"retired", "x"}}}};
+    // A field added since (written before it existed) or retired since is no change.
+    EXPECT_TRUE(
+        changed_fields(stored, {{"steps", 10.0}, {"meta", {{"inner_lr", 0.01}}}, {"new", 1}})
+            .empty());
+    EXPECT_EQ(changed_fields(stored, {{"steps", 20}, {"meta", {{"inner_lr", 0.02}}}}),
+              (std::vector<std::string>{"meta.inner_lr", "steps"}));
+}
+
 TEST(Train, TwoTrainersCannotWriteOneRunDirectory) {
     test::TempDir dir;
     TrainConfig config = tiny_config(dir, 4, "run");

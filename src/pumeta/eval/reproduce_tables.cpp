@@ -198,7 +198,7 @@ void write_table3(TablePass& pass) {
     pass.md() << "## Table III: other ratios on " << set << "\n\n"
               << "A ratio without a native model uses a smaller-ratio model repeatedly (16× = 4× "
                  "twice; adaptation then runs in each pass), or, for a backbone whose weights "
-                 "serve any ratio (PU-Dense keeps the rN likeliest voxels), the "
+                 "serve any ratio (a voxel model keeps the rN likeliest voxels), the "
               << r
               << "× model with "
                  "patches of (its patch size)·"

@@ -110,8 +110,8 @@ void collect_changes(const nlohmann::json& stored, const nlohmann::json& now,
             if (!stored.contains(key)) continue;
             collect_changes(stored[key], value, prefix.empty() ? key : prefix + "." + key, changes);
         }
-        for (const auto& [key, value] : stored.items())
-            if (!now.contains(key)) changes.push_back(prefix.empty() ? key : prefix + "." + key);
+        // Keys `now` lacks are settings this version no longer has (now lists every field it
+        // knows): retired, not changed.
         return;
     }
     // Numbers compare by value: 1 and 1.0 are the same setting.

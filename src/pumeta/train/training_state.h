@@ -41,8 +41,8 @@ inline constexpr char kRunConfigKey[] = "run_config";
 /// "run_dir", which may differ between the processes or sessions of one run.
 nlohmann::json comparable_config(nlohmann::json config);
 
-/// The fields ("a.b" paths) in which `now` differs from `stored`; fields that `stored` lacks
-/// (written before they existed) do not count.
+/// The fields ("a.b" paths) in which `now` differs from `stored`; fields that only one of them
+/// has (written before they existed, or retired since) do not count.
 std::vector<std::string> changed_fields(const nlohmann::json& stored, const nlohmann::json& now);
 
 /// Appends one JSON record as a line of `file`.
