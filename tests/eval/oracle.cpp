@@ -6,31 +6,19 @@
 #include "pumeta/core/error.h"
 #include "pumeta/geometry/sampling.h"
 #include "pumeta/metrics/metrics.h"
+#include "support/test_util.h"
 
 namespace pumeta {
 namespace {
 
-/// A PU-GCN 4x of width 8 on 64-point patches.
-std::unique_ptr<Backbone> small_model() {
-    return make_backbone({{"backbone", "pugcn"},
-                          {"ratio", 4},
-                          {"channels", 8},
-                          {"k", 8},
-                          {"upsample_channels", 8},
-                          {"reconstruction_channels", 8},
-                          {"patch_size", 64},
-                          {"seed", 1}});
-}
-
 /// Points on a sphere of radius 3 around (1, 1, 1): the ground truth must follow the input's
 /// frame.
 at::Tensor shifted_sphere(int64_t n, uint64_t seed) {
-    at::Tensor p = uniform_random_points(n, seed);
-    return p / p.norm(2, 1, true) * 3.0 + 1.0;
+    return test::sphere_points(n, seed) * 3.0 + 1.0;
 }
 
 TEST(Oracle, AdaptsOnTheGroundTruthInTheInputsFrame) {
-    auto model = small_model();
+    auto model = test::small_pugcn(4);
     at::Tensor input = shifted_sphere(300, 10);
     at::Tensor gt = shifted_sphere(1200, 11);
     UpsampleResult plain = upsample_cloud(*model, input, {});

@@ -11,22 +11,8 @@
 namespace pumeta {
 namespace {
 
-std::unique_ptr<Backbone> small_pugcn(int64_t ratio) {
-    return make_backbone({{"backbone", "pugcn"},
-                          {"ratio", ratio},
-                          {"channels", 8},
-                          {"k", 8},
-                          {"upsample_channels", 8},
-                          {"reconstruction_channels", 8},
-                          {"patch_size", 64},
-                          {"seed", 1}});
-}
-
-/// Points on the unit sphere (a surface, so patches are meaningful).
-at::Tensor sphere_points(int64_t n, uint64_t seed) {
-    at::Tensor p = uniform_random_points(n, seed);
-    return p / p.norm(2, 1, true);
-}
+using test::small_pugcn;
+using test::sphere_points;
 
 TEST(UpsampleCloud, OutputCountIsExactlyRatioTimesInputForEveryRatio) {
     at::Tensor input = sphere_points(300, 1);

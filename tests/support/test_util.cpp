@@ -137,33 +137,16 @@ std::unique_ptr<Backbone> tiny_pugcn(uint64_t seed) {
 }  // namespace
 
 nlohmann::json tiny_pugcn_config(int64_t ratio, uint64_t seed) {
-    return {{"backbone", "pugcn"},
-            {"ratio", ratio},
-            {"channels", 4},
-            {"k", 4},
-            {"dilation", 2},
-            {"upsample_channels", 4},
-            {"reconstruction_channels", 4},
-            {"patch_size", 16},
-            {"downsampler", "random"},
-            {"seed", seed}};
+    nlohmann::json config = small_backbone_config("pugcn");
+    config["ratio"] = ratio;
+    config["seed"] = seed;
+    return config;
 }
 
 nlohmann::json tiny_dispu_config(int64_t ratio) {
-    return {{"backbone", "dispu"},
-            {"ratio", ratio},
-            {"k", 4},
-            {"growth", 4},
-            {"blocks", 2},
-            {"expand_channels", 8},
-            {"feature_channels", 8},
-            {"regressor_channels", 8},
-            {"regressor_bottleneck", 4},
-            {"refiner_channels", 4},
-            {"refiner_out_channels", 8},
-            {"attention_channels", 4},
-            {"patch_size", 16},
-            {"seed", 3}};
+    nlohmann::json config = small_backbone_config("dispu");
+    config["ratio"] = ratio;
+    return config;
 }
 
 void save_tiny_meta_model(const std::string& path, uint64_t seed) {
@@ -210,6 +193,22 @@ nlohmann::json make_tiny_reproduction(const fs::path& dir) {
             {"tta_lr_without_meta", {{"pugcn", 0.02}}},
             {"zero_shot", {{"steps", 3}, {"batch_patches", 2}, {"max_cases", 1}}},
             {"budgets", {{"quick", {{"max_cases", 2}}}, {"full", nlohmann::json::object()}}}};
+}
+
+std::unique_ptr<Backbone> small_pugcn(int64_t ratio) {
+    return make_backbone({{"backbone", "pugcn"},
+                          {"ratio", ratio},
+                          {"channels", 8},
+                          {"k", 8},
+                          {"upsample_channels", 8},
+                          {"reconstruction_channels", 8},
+                          {"patch_size", 64},
+                          {"seed", 1}});
+}
+
+at::Tensor sphere_points(int64_t n, uint64_t seed) {
+    at::Tensor p = uniform_random_points(n, seed);
+    return p / p.norm(2, 1, true);
 }
 
 }  // namespace pumeta::test

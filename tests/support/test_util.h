@@ -7,11 +7,13 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <memory>
 #include <nlohmann/json.hpp>
 #include <string>
 #include <vector>
 
 #include "pumeta/core/error.h"
+#include "pumeta/models/backbone.h"
 
 namespace pumeta::test {
 
@@ -97,11 +99,13 @@ void make_raw_tree(const std::filesystem::path& raw);
 /// baselines "copy" = `cp {input} {output}` and "absent" = a program that does not exist).
 nlohmann::json make_tiny_reproduction(const std::filesystem::path& dir);
 
-/// A PU-GCN config of width 4 on 16-point patches (k 4, dilation 2, random X↓): a model
-/// small enough for finite differences and in-process training runs.
+/// PU-GCN's registered small config (width 4 on 16-point patches, k 4, dilation 2, random
+/// X↓) at `ratio` and `seed`: a model small enough for finite differences and in-process
+/// training runs.
 nlohmann::json tiny_pugcn_config(int64_t ratio, uint64_t seed);
 
-/// A Dis-PU config of width 4–8 on 16-point patches (seed 3), for the same uses.
+/// Dis-PU's registered small config (width 4–8 on 16-point patches, seed 3) at `ratio`, for
+/// the same uses.
 nlohmann::json tiny_dispu_config(int64_t ratio = 4);
 
 /// Overwrites `path` with another tiny meta-trained PU-GCN (weights from `seed`).
@@ -109,5 +113,12 @@ void save_tiny_meta_model(const std::string& path, uint64_t seed);
 
 /// Overwrites `path` with another tiny plain PU-GCN (weights from `seed`).
 void save_tiny_model(const std::string& path, uint64_t seed);
+
+/// A PU-GCN of width 8 on 64-point patches (k 8, seed 1): large enough for the patch pipeline
+/// on a few hundred points, small enough to adapt in milliseconds.
+std::unique_ptr<Backbone> small_pugcn(int64_t ratio);
+
+/// n points on the unit sphere (a surface, so that patches are meaningful), from `seed`.
+at::Tensor sphere_points(int64_t n, uint64_t seed);
 
 }  // namespace pumeta::test
