@@ -214,7 +214,7 @@ TEST(Train, ResumeRefusesAChangedConfigUnlessTheFieldIsAllowed) {
     train(config, /*resume=*/false);
     TrainConfig changed = config;
     changed.steps = 4;
-    changed.lr = config.lr * 2;
+    changed.schedule.lr = config.schedule.lr * 2;
     EXPECT_TRUE(test::throws_input_error([&] { train(changed, /*resume=*/true); },
                                          {config.run_dir, "--resume with a changed config",
                                           "steps (2 -> 4)", "lr (", "--allow-change"}));
@@ -325,7 +325,7 @@ TEST(Train, AnAuxiliaryNetworkTrainsWithItsOwnLossAndResumesOutsideTheModel) {
     TrainConfig config = tiny_config(dir, 4, "straight");
     config.backbone = {{"backbone", "toy-adversarial"}, {"ratio", 4}};
     config.steps = 4;
-    config.lr = 0.01;
+    config.schedule.lr = 0.01;
     train(config, false);
     // The log has the adversarial term and the auxiliary loss of every step.
     std::vector<nlohmann::json> lines = loss_lines(dir.file("straight/log.jsonl"));

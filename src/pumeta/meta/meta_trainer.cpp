@@ -26,9 +26,7 @@ void visit_fields(Self& c, Visit&& visit) {
     visit("init", c.init);
     visit("meta", c.meta);
     visit("tasks_per_batch", c.tasks_per_batch);
-    visit("outer_lr", c.outer_lr);
-    visit("outer_lr_decay", c.outer_lr_decay);
-    visit("outer_lr_decay_steps", c.outer_lr_decay_steps);
+    visit_schedule(c.outer, visit, "outer_lr", "outer_lr_decay", "outer_lr_decay_steps");
     visit("step_size_lr", c.step_size_lr);
     visit("val_tasks", c.val_tasks);
 }
@@ -40,8 +38,7 @@ MetaTrainConfig MetaTrainConfig::from_json(const nlohmann::json& j) {
     read_fields(j, "meta-train config", [&](auto&& visit) { visit_fields(c, visit); });
     if (c.init.empty()) throw_input_error("meta-train config", "'init' is required");
     check_run_settings(c, "meta-train config", "tasks_per_batch", c.tasks_per_batch);
-    if (c.outer_lr_decay_steps < 1)
-        throw_input_error("meta-train config", "'outer_lr_decay_steps' must be >= 1");
+    check_schedule(c.outer, "meta-train config", "outer_lr", "outer_lr_decay_steps");
     return c;
 }
 
@@ -108,7 +105,7 @@ class MetaStage final : public RunStage {
           // Task n of a batch is the n-th of the whole batch: its X↓ seed must not depend on W.
           first_task_(
               static_cast<uint64_t>(config.tasks_per_batch / group.world_size() * group.rank())),
-          outer_(model.parameters(), AdamOptions{config.outer_lr}) {
+          outer_(model.parameters(), AdamOptions{config.outer.lr}) {
         const nlohmann::json& info = opened.info;
         if (config.meta.learn_inner_lr) {
             step_sizes_ = make_step_sizes(model, config.meta);
@@ -144,8 +141,7 @@ class MetaStage final : public RunStage {
 
     StepOutcome step(int64_t step, const std::function<bool()>& wants_stop) override {
         Batch batch = data_.loader.next();
-        outer_.set_lr(decayed_lr(config_.outer_lr, config_.outer_lr_decay,
-                                 config_.outer_lr_decay_steps, step));
+        outer_.set_lr(config_.outer.at(step));
         last_step_ = meta_gradient(
             model_, batch.input, batch.gt, config_.meta, step_sizes_,
             config_.seed * 1000003 + static_cast<uint64_t>(step) * 64 + first_task_, step);

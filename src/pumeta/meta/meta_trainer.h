@@ -32,10 +32,9 @@ struct MetaTrainConfig : RunSettings {
     MetaOptions meta;
     /// B: tasks per outer iteration (paper 8).
     int64_t tasks_per_batch = 8;
-    /// Outer Adam: lr · decay^(step / decay_steps) (paper: Adam 1e-4, decay 0.99).
-    double outer_lr = 1e-4;
-    double outer_lr_decay = 0.99;
-    int64_t outer_lr_decay_steps = 100;
+    /// Outer Adam: lr · decay^(step / decay_steps) (paper: Adam 1e-4, decay 0.99; JSON fields
+    /// outer_lr, outer_lr_decay, outer_lr_decay_steps).
+    LrSchedule outer{1e-4, 0.99, 100};
     /// Adam learning rate of Meta-SGD step sizes (relative to inner_lr's scale).
     double step_size_lr = 1e-3;
     int64_t val_tasks = 64;

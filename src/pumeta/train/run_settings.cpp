@@ -8,9 +8,15 @@
 
 namespace pumeta {
 
-double decayed_lr(double lr, double rate, int64_t steps, int64_t step, double floor) {
+double LrSchedule::at(int64_t step) const {
     return std::max(lr * std::pow(rate, static_cast<double>(step) / static_cast<double>(steps)),
                     floor);
+}
+
+void check_schedule(const LrSchedule& s, const std::string& context, const char* lr,
+                    const char* steps) {
+    if (!(s.lr > 0)) throw_input_error(context, "'{}' must be positive", lr);
+    if (s.steps < 1) throw_input_error(context, "'{}' must be >= 1", steps);
 }
 
 void check_run_settings(const RunSettings& s, const std::string& context,

@@ -43,9 +43,30 @@ void visit_run_settings(Self& s, Visit&& visit) {
     visit("distributed", s.distributed);
 }
 
-/// An exponentially decaying learning rate, the schedule of every run:
-/// max(floor, lr · rate^(step / steps)).
-double decayed_lr(double lr, double rate, int64_t steps, int64_t step, double floor = 0);
+/// The learning rate of a run's optimiser: max(floor, lr · rate^(step / steps)), an
+/// exponential decay (PU-GCN's schedule; the paper's outer loop with floor 0).
+struct LrSchedule {
+    double lr = 1e-3;
+    double rate = 1.0;
+    int64_t steps = 1;
+    double floor = 0;
+
+    double at(int64_t step) const;
+};
+
+/// Visits a schedule's fields under a config's JSON names (`floor` null: not a config field).
+template <class Schedule, class Visit>
+void visit_schedule(Schedule& s, Visit&& visit, const char* lr, const char* rate, const char* steps,
+                    const char* floor = nullptr) {
+    visit(lr, s.lr);
+    visit(rate, s.rate);
+    visit(steps, s.steps);
+    if (floor) visit(floor, s.floor);
+}
+
+/// InputError naming `context` and the field `lr` / `steps` unless lr > 0 and steps >= 1.
+void check_schedule(const LrSchedule& s, const std::string& context, const char* lr,
+                    const char* steps);
 
 /// InputError naming `context` unless train_data and run_dir are given, steps and the
 /// cadences are valid, the sampler is known, and `batch` (the field `batch_name`) is at least 1

@@ -30,10 +30,7 @@ void visit_fields(Self& c, Visit&& visit) {
     visit_run_settings(c, visit);
     visit("backbone", c.backbone);
     visit("batch_size", c.batch_size);
-    visit("lr", c.lr);
-    visit("lr_decay_rate", c.lr_decay_rate);
-    visit("lr_decay_steps", c.lr_decay_steps);
-    visit("lr_min", c.lr_min);
+    visit_schedule(c.schedule, visit, "lr", "lr_decay_rate", "lr_decay_steps", "lr_min");
     visit("val_patches", c.val_patches);
     visit("init_from", c.init_from);
 }
@@ -44,8 +41,7 @@ TrainConfig TrainConfig::from_json(const nlohmann::json& j) {
     TrainConfig c;
     read_fields(j, "train config", [&](auto&& visit) { visit_fields(c, visit); });
     check_run_settings(c, "train config", "batch_size", c.batch_size);
-    if (!(c.lr > 0)) throw_input_error("train config", "'lr' must be positive");
-    if (c.lr_decay_steps < 1) throw_input_error("train config", "'lr_decay_steps' must be >= 1");
+    check_schedule(c.schedule, "train config", "lr", "lr_decay_steps");
     return c;
 }
 
@@ -198,7 +194,7 @@ class SupervisedStage final : public RunStage {
           model_(model),
           group_(group),
           data_(config, config.batch_size, config.val_patches, model, group),
-          adam_(model.parameters(), AdamOptions{config.lr}),
+          adam_(model.parameters(), AdamOptions{config.schedule.lr}),
           auxiliary_(model, config.seed) {
         int64_t step = 0;
         if (!opened.info.is_null()) {
@@ -221,8 +217,7 @@ class SupervisedStage final : public RunStage {
 
     StepOutcome step(int64_t step, const std::function<bool()>& wants_stop) override {
         Batch batch = data_.loader.next();
-        adam_.set_lr(decayed_lr(config_.lr, config_.lr_decay_rate, config_.lr_decay_steps, step,
-                                config_.lr_min));
+        adam_.set_lr(config_.schedule.at(step));
         model_.update_buffers(batch.input, model_.parameters());
         LossTerms terms = auxiliary_.empty()
                               ? model_.loss_terms(batch.input, batch.gt, model_.parameters(), step)

@@ -24,11 +24,9 @@ struct TrainConfig : RunSettings {
     /// Backbone config for make_backbone() (ignored on resume: the state's config is used).
     nlohmann::json backbone;
     int64_t batch_size = 64;
-    /// Adam, lr = max(lr_min, lr · lr_decay_rate^(step / lr_decay_steps)) (PU-GCN's schedule).
-    double lr = 1e-3;
-    double lr_decay_rate = 0.7;
-    int64_t lr_decay_steps = 50000;
-    double lr_min = 1e-6;
+    /// Adam's learning rate: max(lr_min, lr · lr_decay_rate^(step / lr_decay_steps)), PU-GCN's
+    /// schedule (JSON fields lr, lr_decay_rate, lr_decay_steps, lr_min).
+    LrSchedule schedule{1e-3, 0.7, 50000, 1e-6};
     /// Validation patches (fixed: the first val_patches of a seeded draw, no augmentation).
     int64_t val_patches = 256;
     /// Optional checkpoint whose parameters and buffers initialise a fresh run wherever name
