@@ -15,6 +15,7 @@
 #include "pumeta/core/error.h"
 #include "pumeta/meta/maml.h"
 #include "pumeta/nn/adam.h"
+#include "pumeta/nn/chamfer_loss.h"
 #include "pumeta/nn/gradients.h"
 #include "pumeta/nn/sparse/voxelize.h"
 #include "pumeta/train/trainer.h"
@@ -123,6 +124,35 @@ TEST(PuDense, EachPatchUpsamplesTheSameAloneAsInABatch) {
         EXPECT_LE(distinct - n, n / 100) << "patch " << b << ": " << distinct - n << " of " << n;
     }
     EXPECT_EQ(model->inference_batch_patches(), 2);
+}
+
+TEST(PuDense, DiagnoseDecomposesTheErrorIntoVoxelFloorCandidatesAndRanking) {
+    auto model = tiny_model(4);
+    at::Tensor y = test::sheet(2, 160, 5);
+    at::Tensor x = y.slice(1, 0, 160, 4).contiguous();
+    nlohmann::json d = model->diagnose(x, y);
+    ASSERT_EQ(d["floor_cd"].size(), 2u);
+    const double h = model->voxel_size();
+    at::Tensor output = model->upsample(x);
+    for (int b = 0; b < 2; ++b) {
+        const double floor = d["floor_cd"][b], candidates = d["candidates_cd"][b];
+        const double recall = d["candidate_recall"][b], precision = d["precision"][b];
+        // Snapping moves each point by at most half a voxel diagonal.
+        EXPECT_GT(floor, 0.0);
+        EXPECT_LE(floor, 2 * 0.75 * h * h);
+        EXPECT_GE(recall, 0.0);
+        EXPECT_LE(recall, 1.0);
+        EXPECT_GE(precision, 0.0);
+        EXPECT_LE(precision, 1.0);
+        // The best choice among the candidates is no worse than the network's own.
+        const double model_cd =
+            2.0 * chamfer_loss(output.slice(0, b, b + 1), y.slice(0, b, b + 1)).item<double>();
+        EXPECT_LE(candidates, model_cd + 1e-9);
+    }
+    // A target made of voxel centres is its own ideal output: the floor is 0.
+    at::Tensor centres = (at::floor(y / h) + 0.5) * h;
+    nlohmann::json exact = model->diagnose(x, centres.to(at::kFloat));
+    EXPECT_NEAR(exact["floor_cd"][0].get<double>(), 0.0, 1e-10);
 }
 
 TEST(PuDense, LossIsBceAgainstMembershipInTheTargetVoxels) {

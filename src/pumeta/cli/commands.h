@@ -26,6 +26,8 @@ void add_reproduce_command(CLI::App& app, const std::string& command_line);
 void add_report_command(CLI::App& app);
 void add_render_command(CLI::App& app);
 void add_contact_sheet_command(CLI::App& app);
+/// Where a model's error on held-out patches comes from (eval/diagnose.h).
+void add_diagnose_command(CLI::App& app);
 
 /// The largest --ratio any command accepts.
 inline constexpr int64_t kMaxRatio = 256;

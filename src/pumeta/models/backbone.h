@@ -111,6 +111,13 @@ class Backbone {
     /// The learning rate of the auxiliary networks' Adam at `step`.
     virtual double auxiliary_lr(int64_t step) const { return 1e-4; }
 
+    /// Where the backbone's error on patches comes from, in its own terms (`pumeta diagnose`):
+    /// for input [B,N,3] and target [B,rN,3], named numbers per patch ({"name": [B values]}),
+    /// each the mean over the patch where it is a distance. Null (the default): none.
+    virtual nlohmann::json diagnose(const at::Tensor& input, const at::Tensor& target) const {
+        return nullptr;
+    }
+
     /// Moves parameters and buffers to a device ("cpu", "cuda").
     void to(const std::string& device);
 

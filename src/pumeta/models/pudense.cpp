@@ -2,6 +2,7 @@
 
 #include <ATen/ATen.h>
 
+#include <limits>
 #include <random>
 
 #include "pumeta/core/error.h"
@@ -9,6 +10,7 @@
 #include "pumeta/models/config_fields.h"
 #include "pumeta/models/downsample.h"
 #include "pumeta/nn/batch_norm.h"
+#include "pumeta/nn/chamfer_loss.h"
 #include "pumeta/nn/sparse/sparse_conv.h"
 #include "pumeta/nn/sparse/sparse_ops.h"
 #include "pumeta/nn/sparse/voxelize.h"
@@ -346,6 +348,60 @@ at::Tensor PuDense::downsample(const at::Tensor& dense, uint64_t seed) const {
     check_batched_points(dense, "pudense downsample");
     return downsample_points(dense, std::max<int64_t>(1, dense.size(1) / options_.ratio),
                              options_.downsampler, seed);
+}
+
+nlohmann::json PuDense::diagnose(const at::Tensor& input, const at::Tensor& target) const {
+    check_input(input, params_, "pudense input");
+    check_batched_points(target, "pudense target");
+    at::NoGradGuard no_grad;
+    BatchNormContext norm;
+    norm.batch_statistics = options_.batch_stats_at_inference;
+    norm.running = &buffers_;
+    const Occupancy occ = occupancy(voxels(input), params_, norm);
+    const CoordinateSetPtr truth = voxelize(target, voxel_size());
+    const at::Tensor logits = occ.logits.to(at::kCPU).to(at::kDouble);
+    const at::Tensor is_truth = truth->lookup(occ.sites->coords()) >= 0;
+    const at::Tensor centres = voxel_centres(occ.sites->coords(), voxel_size());
+    const int64_t wanted = target.size(1);
+    // Ranked points cycled to `wanted`, as upsample() fills a short ranking.
+    auto cycled = [&](const at::Tensor& points) {
+        return points.index_select(0, at::arange(wanted, at::kLong).remainder(points.size(0)));
+    };
+    auto cd = [](const at::Tensor& a, const at::Tensor& b) {
+        return 2.0 * chamfer_loss(a.unsqueeze(0).to(at::kFloat), b.unsqueeze(0).to(at::kFloat))
+                         .item<double>();
+    };
+    nlohmann::json floor_cd, candidates_cd, recall, precision;
+    for (int64_t b = 0; b < target.size(0); ++b) {
+        const at::Tensor gt = target[b].to(at::kCPU);
+        // The target's voxels, most occupied first.
+        const auto [voxels, inverse, counts] =
+            at::unique_dim(voxel_coordinates(gt.unsqueeze(0), voxel_size()), 0, true, false, true);
+        const at::Tensor by_count = std::get<1>(counts.sort(0, /*descending=*/true));
+        floor_cd.push_back(
+            cd(cycled(voxel_centres(voxels.index_select(0, by_count), voxel_size())), gt));
+        const at::Tensor rows = (occ.sites->batch_index() == b).nonzero().view(-1);
+        const at::Tensor hit = is_truth.index_select(0, rows);
+        recall.push_back(hit.sum().item<double>() / static_cast<double>(voxels.size(0)));
+        if (rows.numel() == 0) {  // nothing generated: nothing selected
+            precision.push_back(0.0);
+            candidates_cd.push_back(std::numeric_limits<double>::quiet_NaN());
+            continue;
+        }
+        const at::Tensor own = logits.index_select(0, rows);
+        const int64_t keep = std::min(wanted, rows.numel());
+        const at::Tensor selected = std::get<1>(own.topk(keep));
+        precision.push_back(hit.index_select(0, selected).to(at::kDouble).mean().item<double>());
+        // Target voxels among the candidates first, then the network's ranking.
+        const at::Tensor ideal =
+            std::get<1>((own + hit.to(at::kDouble) * (own.abs().max() * 2 + 1)).topk(keep));
+        candidates_cd.push_back(
+            cd(cycled(centres.index_select(0, rows.index_select(0, ideal))), gt));
+    }
+    return {{"floor_cd", floor_cd},
+            {"candidates_cd", candidates_cd},
+            {"candidate_recall", recall},
+            {"precision", precision}};
 }
 
 void PuDense::update_buffers(const at::Tensor& input, const ParamMap& params) {

@@ -108,6 +108,16 @@ class PuDense : public Backbone {
     /// Moves the running statistics of every batch norm towards this batch's.
     void update_buffers(const at::Tensor& input, const ParamMap& params) override;
 
+    /// The voxel decomposition of the CD (docs/design.md, "PU-Dense"), per patch:
+    /// - floor_cd: CD of the ideal output, the target's own voxels (most occupied first,
+    ///   repeated cyclically to rN as upsample() does) against the target: what voxel centres
+    ///   cannot go below;
+    /// - candidates_cd: the same ideal restricted to the voxels the network generates (the
+    ///   target's voxels among them, then the network's ranking for the rest);
+    /// - candidate_recall: the share of the target's voxels among the generated ones;
+    /// - precision: the share of the selected voxels that are target voxels.
+    nlohmann::json diagnose(const at::Tensor& input, const at::Tensor& target) const override;
+
     /// The occupied voxels of x [B,N,3]. The last few results are cached (keyed by content), so
     /// the kernel maps built for an input are reused by repeated calls on it: the inner loop,
     /// update_buffers then loss.

@@ -1,0 +1,42 @@
+// pumeta diagnose --model M --data PATCHES [--patches V] [--seed S]
+#include "pumeta/eval/diagnose.h"
+
+#include "pumeta/cli/commands.h"
+#include "pumeta/core/error.h"
+#include "pumeta/data/patch_set.h"
+#include "pumeta/inference/model_file.h"
+
+namespace pumeta::cli {
+
+void add_diagnose_command(CLI::App& app) {
+    struct Args {
+        std::string model, data;
+        int64_t patches = 128;
+        uint64_t seed = 1;
+    };
+    auto args = std::make_shared<Args>();
+    CLI::App* command =
+        app.add_subcommand("diagnose",
+                           "where a model's error on held-out patches comes from (its CD and the "
+                           "decomposition its backbone reports)");
+    command->add_option("--model", args->model, "checkpoint")->required();
+    command->add_option("--data", args->data, "a patch set of make-dataset (val-x<r>.tensors)")
+        ->required();
+    command->add_option("--patches", args->patches, "validation patches (a seeded draw)")
+        ->check(integer_in(1, 1000000));
+    command->add_option("--seed", args->seed, "seed of the draw and of the inputs")
+        ->check(seed_value());
+    command->callback([args] {
+        InferenceModel model = load_inference_model(args->model);
+        const std::string sampler = model.extra.value("sampler", std::string("fps"));
+        PatchSet set = load_patch_set(args->data);
+        if (set.ratio != model.backbone->ratio())
+            throw_input_error(args->data, "patch set has ratio {} but the model has ratio {}",
+                              set.ratio, model.backbone->ratio());
+        ValidationSet val =
+            make_validation_set(set, args->patches, parse_input_sampler(sampler), args->seed);
+        print_json(diagnose_patches(*model.backbone, val));
+    });
+}
+
+}  // namespace pumeta::cli
