@@ -1,4 +1,4 @@
-// pumeta diagnose --model M --data PATCHES [--patches V] [--seed S]
+// pumeta diagnose --model M --data PATCHES [--patches V] [--seed S] [--sampler S]
 #include "pumeta/eval/diagnose.h"
 
 #include "pumeta/cli/commands.h"
@@ -13,6 +13,7 @@ void add_diagnose_command(CLI::App& app) {
         std::string model, data;
         int64_t patches = 128;
         uint64_t seed = 1;
+        std::string sampler;  // empty: the model's training sampler
     };
     auto args = std::make_shared<Args>();
     CLI::App* command =
@@ -26,9 +27,17 @@ void add_diagnose_command(CLI::App& app) {
         ->check(integer_in(1, 1000000));
     command->add_option("--seed", args->seed, "seed of the draw and of the inputs")
         ->check(seed_value());
+    command
+        ->add_option("--sampler", args->sampler,
+                     "how inputs are drawn from the GT patches: fps, random or nonuniform "
+                     "(default: the model's training sampler), so that models compare on "
+                     "the same inputs")
+        ->check(CLI::IsMember({"fps", "random", "nonuniform"}));
     command->callback([args] {
         InferenceModel model = load_inference_model(args->model);
-        const std::string sampler = model.extra.value("sampler", std::string("fps"));
+        const std::string sampler = !args->sampler.empty()
+                                        ? args->sampler
+                                        : model.extra.value("sampler", std::string("fps"));
         PatchSet set = load_patch_set(args->data);
         if (set.ratio != model.backbone->ratio())
             throw_input_error(args->data, "patch set has ratio {} but the model has ratio {}",
