@@ -336,7 +336,9 @@ TEST_P(Conformance, SecondOrderMetaGradientMatchesFiniteDifferences) {
     std::sort(slopes.begin(), slopes.end());
     const double numeric = 0.5 * (slopes[1] + slopes[2]);
     ASSERT_GT(std::abs(numeric), 1e-8) << "degenerate direction";
-    EXPECT_LT(std::abs(analytic - numeric), 1e-4 * std::abs(numeric))
+    // 3e-4: the analytic side moves by about 1e-4 between OpenBLAS kernels (PU-Dense:
+    // 0.0182343 under Haswell and Sandybridge kernels against a numeric 0.0182324).
+    EXPECT_LT(std::abs(analytic - numeric), 3e-4 * std::abs(numeric))
         << "analytic " << analytic << ", numeric " << numeric;
 
     // The check sees the second-order terms: without them (FOMAML) the directional
@@ -344,7 +346,7 @@ TEST_P(Conformance, SecondOrderMetaGradientMatchesFiniteDifferences) {
     options.first_order = true;
     const double first_order =
         directional(meta_gradient(*model, x, y, options, {}, seed).grads, direction);
-    EXPECT_GT(std::abs(first_order - numeric), 1e-3 * std::abs(numeric))
+    EXPECT_GT(std::abs(first_order - numeric), 3e-3 * std::abs(numeric))
         << "first-order " << first_order << ", numeric " << numeric;
 }
 
