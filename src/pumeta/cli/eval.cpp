@@ -24,9 +24,11 @@ void add_eval_command(CLI::App& app, const std::string& command_line) {
         ->required();
     command
         ->add_option("--method", args->eval.method,
-                     "network, midpoint, input, floor, external or zero-shot (a fresh model of "
-                     "--model's architecture trained on each input alone)")
-        ->check(CLI::IsMember({"network", "midpoint", "input", "floor", "external", "zero-shot"}));
+                     "network, midpoint, input, floor, external, zero-shot (a fresh model of "
+                     "--model's architecture trained on each input alone) or grid-floor (the "
+                     "ground truth through --model's pipeline on its output grid)")
+        ->check(CLI::IsMember(
+            {"network", "midpoint", "input", "floor", "external", "zero-shot", "grid-floor"}));
     command
         ->add_option("--zero-shot-steps", args->eval.zero_shot.steps,
                      "method zero-shot: Adam steps per input")
@@ -55,7 +57,8 @@ void add_eval_command(CLI::App& app, const std::string& command_line) {
             throw_input_error(args->cases, "the cases are at ratio {}, not --ratio {}", ratio,
                               args->model.ratio);
         ServedModel served;
-        if (args->eval.method == "network" || args->eval.method == "zero-shot") {
+        if (args->eval.method == "network" || args->eval.method == "zero-shot" ||
+            args->eval.method == "grid-floor") {
             served = load_model(args->model, ratio);
             args->eval.upsample = upsample_options(args->model, served);
             args->eval.oracle = args->model.tta_unit == "oracle";

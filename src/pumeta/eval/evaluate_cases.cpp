@@ -15,6 +15,7 @@
 #include "pumeta/core/progress.h"
 #include "pumeta/data/layout.h"
 #include "pumeta/eval/cases_csv.h"
+#include "pumeta/eval/grid_floor.h"
 #include "pumeta/eval/oracle.h"
 #include "pumeta/geometry/io.h"
 #include "pumeta/metrics/metrics.h"
@@ -84,7 +85,9 @@ at::Tensor run_external(const std::string& command_template, const at::Tensor& i
 nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* model,
                               const EvalOptions& options, const std::string& out_dir) {
     const nlohmann::json index = layout::read_case_index(cases_dir);
-    if ((options.method == "network" || options.method == "zero-shot") && !model)
+    if ((options.method == "network" || options.method == "zero-shot" ||
+         options.method == "grid-floor") &&
+        !model)
         throw_input_error("eval", "method '{}' needs --model", options.method);
     int64_t ratio = index.at("ratio");
     UpsampleOptions upsample = options.upsample;
@@ -169,6 +172,8 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
                              c["name"].get<std::string>());
         } else if (options.method == "input") {
             result.points = input;
+        } else if (options.method == "grid-floor") {
+            result.points = grid_floor_output(*model, input, gt, ratio);
         } else if (options.method == "floor") {
             if (c.value("gt_alt", nlohmann::json()).is_null())
                 throw_input_error(dir.string(), "case has no gt_alt.ply for the sampling floor");

@@ -16,7 +16,8 @@ struct EvalOptions {
     /// unchanged: the reference any method must beat), "floor" (a second independent GT sample:
     /// the sampling floor; cases with gt_alt only), "external" (another program, see
     /// external_command), "zero-shot" (a fresh model of the given model's architecture trained
-    /// on each input alone, see zero_shot).
+    /// on each input alone, see zero_shot), "grid-floor" (the ground truth through the model's
+    /// patch pipeline on its output grid: what a gridded backbone cannot beat, eval/grid_floor.h).
     std::string method = "network";
     /// Method "external": a shell command upsampling {input} (an XYZ file) into {output} (XYZ)
     /// by {ratio}; e.g. "build/pumeta-ear {input} {output} --ratio {ratio}".

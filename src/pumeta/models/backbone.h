@@ -111,6 +111,11 @@ class Backbone {
     /// The learning rate of the auxiliary networks' Adam at `step`.
     virtual double auxiliary_lr(int64_t step) const { return 1e-4; }
 
+    /// The edge of the grid the outputs lie on, in the patch frame (voxel centres; 0, the
+    /// default: continuous outputs). `pumeta eval --method grid-floor` measures what such a
+    /// grid costs on whole objects.
+    virtual double output_grid() const { return 0; }
+
     /// Where the backbone's error on patches comes from, in its own terms (`pumeta diagnose`):
     /// for input [B,N,3] and target [B,rN,3], named numbers per patch ({"name": [B values]}),
     /// each the mean over the patch where it is a distance. Null (the default): none.

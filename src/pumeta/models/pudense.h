@@ -85,6 +85,7 @@ class PuDense : public Backbone {
     const PuDenseOptions& options() const { return options_; }
     /// Voxel edge length h in the input frame.
     double voxel_size() const { return 1.0 / options_.resolution; }
+    double output_grid() const override { return voxel_size(); }
 
     /// The network on occupied voxels (stride-1 sites, feature 1 each).
     Occupancy occupancy(const CoordinateSetPtr& voxels, const ParamMap& params,
