@@ -15,6 +15,7 @@
 #include "pumeta/nn/batch_norm.h"
 #include "pumeta/nn/chamfer_loss.h"
 #include "pumeta/nn/conv.h"
+#include "pumeta/nn/dense_edge_conv.h"
 #include "pumeta/nn/graph.h"
 #include "pumeta/nn/init.h"
 #include "pumeta/nn/repulsion_loss.h"
@@ -61,7 +62,9 @@ int64_t positive_int(const nlohmann::json& value, const std::string& key) {
     return positive_int_field(value, key, kContext);
 }
 
-std::string block_prefix(int64_t block) { return "features.block" + std::to_string(block); }
+DenseEdgeConvShape feature_shape(const DisPuOptions& o) {
+    return DenseEdgeConvShape{/*first=*/o.growth, o.growth, o.blocks};
+}
 
 // TensorFlow's Xavier limit for a kernel counts its window in both fans (a [1,W] kernel
 // with Cin inputs and Cout outputs has fans W·Cin and W·Cout); an edge convolution is one
@@ -184,26 +187,9 @@ nlohmann::json DisPuOptions::to_json() const {
 DisPu::DisPu(const DisPuOptions& options) : options_(options) {
     std::mt19937_64 rng(options.seed);
     const DisPuOptions& o = options_;
-    const int64_t g = o.growth;
 
-    // Feature extractor: layer0 3 -> g; block b: [1x1 compression -> 2g (b > 0)], EdgeConv
-    // in -> g, l1 [y0, x] -> g, l2 [y1, y0, x] -> g. Widths 5g, 10g, ... (120, ..., 480).
-    add_linear(params_, "features.layer0", 3, g, /*bias=*/true, rng);
-    int64_t channels = g;
-    for (int64_t b = 0; b < o.blocks; ++b) {
-        const std::string prefix = block_prefix(b);
-        int64_t in = g;
-        if (b > 0) {
-            add_linear(params_, prefix + ".prep", channels, 2 * g, true, rng);
-            in = 2 * g;
-        }
-        add_edge_conv(params_, prefix + ".edge", in, g, rng);
-        match_original_xavier(params_, prefix + ".edge.central.weight", in + g, 2 * in + g);
-        match_original_xavier(params_, prefix + ".edge.message.weight", in + g, 2 * in + g);
-        add_linear(params_, prefix + ".l1", g + in, g, true, rng);
-        add_linear(params_, prefix + ".l2", 2 * g + in, g, true, rng);
-        channels = (b == 0 ? g : channels) + 3 * g + in;
-    }
+    // Feature extractor: PU-GAN's dense EdgeConv with the first layer as wide as the growth.
+    const int64_t channels = add_dense_edge_conv(params_, "features", feature_shape(o), rng);
 
     // Duplicate-up on [features, grid code], then the coarse regressor.
     add_linear(params_, "up.conv1", channels + 2, o.expand_channels, true, rng);
@@ -241,36 +227,7 @@ void DisPu::check_input(const at::Tensor& x, const ParamMap& params, const char*
 }
 
 at::Tensor DisPu::extract_features(const at::Tensor& x, const ParamMap& params) const {
-    const int64_t g = options_.growth;
-    const int64_t k = std::min(options_.k, x.size(1) - 1);
-    at::Tensor first = conv1x1(x, params, "features.layer0");  // linear, as the original
-    at::Tensor features;
-    for (int64_t b = 0; b < options_.blocks; ++b) {
-        const std::string prefix = block_prefix(b);
-        at::Tensor in = b == 0 ? first : at::relu(conv1x1(features, params, prefix + ".prep"));
-        const int64_t c = in.size(-1);
-        // Dense EdgeConv on the kNN graph of its own input (a dynamic graph):
-        //   y0 = ReLU(EdgeConv), y1 = ReLU(W1 [y0, x_i] + b1), y2 = W2 [y1, y0, x_i] + b2,
-        //   out = [max_j y2, max_j y1, max_j y0, x_i].
-        // The x_i columns of W1 and W2 act per point, not per edge.
-        at::Tensor graph = knn_graph(in, k);
-        at::Tensor y0 = edge_conv_edges(in, graph, params, prefix + ".edge");
-        const at::Tensor& w1 = param(params, prefix + ".l1.weight");
-        const at::Tensor& w2 = param(params, prefix + ".l2.weight");
-        at::Tensor y1 =
-            at::relu(conv1x1_weights(y0, w1.narrow(1, 0, g), {}) +
-                     conv1x1_weights(in, w1.narrow(1, g, c), param(params, prefix + ".l1.bias"))
-                         .unsqueeze(2));
-        at::Tensor y2 =
-            conv1x1_weights(at::cat({y1, y0}, -1), w2.narrow(1, 0, 2 * g), {}) +
-            conv1x1_weights(in, w2.narrow(1, 2 * g, c), param(params, prefix + ".l2.bias"))
-                .unsqueeze(2);
-        at::Tensor dense = at::cat({max_over_neighbors(at::cat({y2, y1, y0}, -1)), in}, -1);
-        // Blocks stack onto everything before them; the first block's input appears twice
-        // (inside the dense output and again), as in the original's 24 + (24 + 3·24) = 120.
-        features = at::cat({dense, b == 0 ? first : features}, -1);
-    }
-    return features;
+    return dense_edge_conv(x, params, "features", feature_shape(options_), options_.k);
 }
 
 at::Tensor DisPu::duplicate_up(const at::Tensor& features, const ParamMap& params) const {
