@@ -4,7 +4,10 @@
 // the thread count (on a shared machine, OpenMP spin-waiting can make 2 threads slower than 1).
 // Before the benchmarks, forward + backward is timed against a baseline built from the same
 // batched ATen ops (one gather, one bmm, one index_add_) left to autograd's own backward, as
-// the engine ran under autograd before its backward was written out, and the ratio printed.
+// the engine ran under autograd before its backward was written out, and the ratio printed;
+// then, for widths 8 to 128, both product paths (per offset: gather, GEMM, scatter-add;
+// output-major: one gather of every (site, offset) slot and one GEMM) against three dense
+// GEMMs of the same useful FLOPs, the cost of forward + backward without waste.
 #include "pumeta/nn/sparse/sparse_conv.h"
 
 #include <ATen/ATen.h>
@@ -148,6 +151,59 @@ BENCHMARK(BM_SparseConv3x3x3ForwardBackward)
 BENCHMARK(BM_DenseGemmSameFlops)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 BENCHMARK(BM_KernelMapBuild)->Arg(1)->Arg(2)->Unit(benchmark::kMillisecond)->UseRealTime();
 
+/// The map with its output-major tables dropped: the per-offset gather-GEMM-scatter path.
+pumeta::KernelMap without_tables(const pumeta::KernelMap& map) {
+    pumeta::KernelMap copy = map;
+    copy.gather_table = at::Tensor();
+    copy.scatter_table = at::Tensor();
+    return copy;
+}
+
+/// Mean seconds of `runs` dense GEMMs [rows, C] x [C, C] on one thread, after a warm-up.
+double seconds_gemm(int64_t rows, int64_t channels, int runs) {
+    at::set_num_threads(1);
+    at::Tensor a = at::randn({rows, channels}), b = at::randn({channels, channels});
+    benchmark::DoNotOptimize(a.mm(b));
+    auto start = std::chrono::steady_clock::now();
+    for (int i = 0; i < runs; ++i) benchmark::DoNotOptimize(a.mm(b));
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() / runs;
+}
+
+/// Forward + backward of a 3³ convolution C -> C on the sphere's sites through both paths,
+/// against three dense GEMMs of the same useful FLOPs (forward, and the two gradients).
+void compare_paths(int64_t channels) {
+    const Fixture& f = fixture();
+    const pumeta::KernelMap& map = *f.sites->conv_map(3, 1);
+    const pumeta::KernelMap per_offset = without_tables(map);
+    std::mt19937_64 rng(3);
+    pumeta::ParamMap params;
+    pumeta::add_sparse_conv(params, "c", channels, channels, 3, /*bias=*/false, rng);
+    at::manual_seed(4);
+    at::Tensor features = at::randn({f.sites->size(), channels});
+    auto run = [&](const pumeta::KernelMap& m) {
+        at::set_num_threads(1);
+        at::Tensor x = features.clone().requires_grad_(true);
+        const at::Tensor& w = params.at("c.weight");
+        auto pass = [&] {
+            torch::autograd::grad({pumeta::apply_kernel_map(x, w, {}, m).sum()}, {w, x});
+        };
+        pass();
+        auto start = std::chrono::steady_clock::now();
+        for (int i = 0; i < 3; ++i) pass();
+        return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() / 3;
+    };
+    const double gemms = 3 * seconds_gemm(map.pairs(), channels, 3);
+    const double scattered = run(per_offset);
+    const double tabled = map.gather_table.defined() ? run(map) : scattered;
+    std::printf(
+        "3^3 conv %3lld -> %3lld, %lld pairs (%.0f%% of the slots), 1 thread: three dense GEMMs "
+        "%6.1f ms; forward + backward per offset %7.1f ms (%.2fx), output-major %7.1f ms "
+        "(%.2fx)\n",
+        (long long)channels, (long long)channels, (long long)map.pairs(),
+        100.0 * double(map.pairs()) / double(map.output_size * map.kernel_volume()), 1e3 * gemms,
+        1e3 * scattered, scattered / gemms, 1e3 * tabled, tabled / gemms);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -156,7 +212,7 @@ int main(int argc, char** argv) {
     pumeta::keep_freed_memory();
     benchmark::Initialize(&argc, argv);
     if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
-    const pumeta::KernelMap& map = *fixture().sites->conv_map(3, 1);
+    const pumeta::KernelMap map = without_tables(*fixture().sites->conv_map(3, 1));
     const double baseline = seconds_forward_backward(
         [&](const at::Tensor& x, const at::Tensor& w) { return autograd_ops_product(x, w, map); },
         3);
@@ -167,8 +223,9 @@ int main(int argc, char** argv) {
         3);
     std::printf(
         "3^3 conv 64 -> 64 forward + backward, 1 thread: %.0f ms as ATen ops under autograd, "
-        "%.0f ms with the written-out blocked backward: %.2fx\n",
+        "%.0f ms with the written-out blocked backward (per-offset path): %.2fx\n",
         1e3 * baseline, 1e3 * engine, baseline / engine);
+    for (int64_t channels : {8, 16, 32, 64, 128}) compare_paths(channels);
     benchmark::RunSpecifiedBenchmarks();
     benchmark::Shutdown();
     return 0;

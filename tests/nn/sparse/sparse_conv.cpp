@@ -18,15 +18,17 @@ namespace {
 
 constexpr int64_t kBatches = 2;
 
-/// About 35% of the voxels of [lo, lo + extent)^3 per batch element, as multiples of `stride`.
-CoordinateSetPtr occupied_grid(int64_t lo, int64_t extent, int64_t stride, uint64_t seed) {
+/// About `percent` % of the voxels of [lo, lo + extent)^3 per batch element, as multiples of
+/// `stride`.
+CoordinateSetPtr occupied_grid(int64_t lo, int64_t extent, int64_t stride, uint64_t seed,
+                               uint64_t percent = 35) {
     std::mt19937_64 rng(seed);
     std::vector<int32_t> flat;
     for (int64_t b = 0; b < kBatches; ++b)
         for (int64_t x = 0; x < extent; ++x)
             for (int64_t y = 0; y < extent; ++y)
                 for (int64_t z = 0; z < extent; ++z)
-                    if (rng() % 100 < 35)
+                    if (rng() % 100 < percent)
                         flat.insert(flat.end(),
                                     {int32_t(b), int32_t((lo + x) * stride),
                                      int32_t((lo + y) * stride), int32_t((lo + z) * stride)});
@@ -204,10 +206,17 @@ std::vector<Case> derivative_cases() {
             return sparse_conv(x, p, "c", {3, 1, 1});
         },
         16);
-    // The per-offset path that large maps take.
+    // The per-offset path that large sparse maps take.
     add("per-offset", 3, fine, [](const SparseTensor& x, const ParamMap& p) {
         KernelMap map = *x.coords()->conv_map(3, 1);
         map.batched_offsets = map.batched_in = map.batched_out = at::Tensor();
+        map.gather_table = map.scatter_table = at::Tensor();
+        return x.with_features(apply_kernel_map(x.features(), p.at("c.weight"), {}, map));
+    });
+    // The batched path that small sparse maps take.
+    add("batched", 3, fine, [](const SparseTensor& x, const ParamMap& p) {
+        KernelMap map = *x.coords()->conv_map(3, 1);
+        map.gather_table = map.scatter_table = at::Tensor();
         return x.with_features(apply_kernel_map(x.features(), p.at("c.weight"), {}, map));
     });
     return cases;
@@ -274,13 +283,15 @@ TEST(SparseConv, BatchedAndPerOffsetPathsAgree) {
         {"generative", coarse->generated(5, 2).map}};
     for (const auto& [name, map] : maps) {
         ASSERT_TRUE(map->batched_offsets.defined()) << name << ": small maps run batched";
-        KernelMap loop = *map;
+        KernelMap batched_map = *map;
+        batched_map.gather_table = batched_map.scatter_table = at::Tensor();
+        KernelMap loop = batched_map;
         loop.batched_offsets = loop.batched_in = loop.batched_out = at::Tensor();
         at::manual_seed(61);
         at::Tensor x = at::randn({map->input_size, 3}).requires_grad_(true);
         at::Tensor w = at::randn({map->kernel_volume(), 3, 2}).requires_grad_(true);
         at::Tensor b = at::randn({2});
-        at::Tensor batched = apply_kernel_map(x, w, b, *map);
+        at::Tensor batched = apply_kernel_map(x, w, b, batched_map);
         at::Tensor looped = apply_kernel_map(x, w, b, loop);
         expect_close(batched, looped, 1e-5);
         at::Tensor r = at::randn_like(batched);
@@ -289,6 +300,45 @@ TEST(SparseConv, BatchedAndPerOffsetPathsAgree) {
         expect_close(g1[0], g2[0], 1e-5);
         expect_close(g1[1], g2[1], 1e-5);
     }
+}
+
+TEST(SparseConv, OutputMajorAndPerOffsetPathsAgree) {
+    auto fine = occupied_grid(-4, 10, 1, 60, /*percent=*/70);
+    auto coarse = fine->coarser(2);
+    const std::pair<const char*, std::shared_ptr<const KernelMap>> maps[] = {
+        {"conv", fine->conv_map(3, 1)},
+        {"dilated", fine->conv_map(3, 2)},
+        {"down", fine->down_map(3, 2)},
+        {"transposed", std::make_shared<const KernelMap>(fine->down_map(3, 2)->transposed())},
+        {"generative", coarse->generated(5, 2).map}};
+    int64_t tabled = 0;
+    for (const auto& [name, map] : maps) {
+        if (!map->gather_table.defined()) continue;
+        ++tabled;
+        ASSERT_EQ(map->gather_table.sizes(),
+                  (at::IntArrayRef{map->output_size, map->kernel_volume()}));
+        ASSERT_EQ(map->scatter_table.sizes(),
+                  (at::IntArrayRef{map->input_size, map->kernel_volume()}));
+        KernelMap loop = *map;
+        loop.gather_table = loop.scatter_table = at::Tensor();
+        loop.batched_offsets = loop.batched_in = loop.batched_out = at::Tensor();
+        for (int64_t channels : {3, 24}) {
+            at::manual_seed(64);
+            at::Tensor x = at::randn({map->input_size, channels}).requires_grad_(true);
+            at::Tensor w = at::randn({map->kernel_volume(), channels, 5}).requires_grad_(true);
+            at::Tensor b = at::randn({5});
+            at::Tensor tables = apply_kernel_map(x, w, b, *map);
+            at::Tensor looped = apply_kernel_map(x, w, b, loop);
+            expect_close(tables, looped, 1e-4);
+            at::Tensor r = at::randn_like(tables);
+            auto g1 = torch::autograd::grad({(tables * r).sum()}, {x, w});
+            auto g2 = torch::autograd::grad({(looped * r).sum()}, {x, w});
+            expect_close(g1[0], g2[0], 1e-4);
+            expect_close(g1[1], g2[1], 1e-4);
+        }
+    }
+    // The grid is dense enough that stride-1 maps fill most of their slots.
+    EXPECT_GE(tabled, 2);
 }
 
 /// Σ_k out[map.out[k]] += x[map.in[k]] · W_k with one plain ATen op per step, differentiated
@@ -306,8 +356,13 @@ TEST(SparseConv, RowBlocksGiveTheUnblockedValuesAndGradients) {
     const std::pair<const char*, std::shared_ptr<const KernelMap>> maps[] = {
         {"conv", fine->conv_map(3, 1)},
         {"transposed", std::make_shared<const KernelMap>(fine->down_map(3, 2)->transposed())}};
-    for (const auto& [name, map] : maps) {
+    for (auto [name, map] : maps) {
         ASSERT_TRUE(map->batched_offsets.defined()) << name;
+        // The per-offset blocks (the output-major path blocks by rows too and is compared
+        // with them in OutputMajorAndPerOffsetPathsAgree).
+        KernelMap per_offset = *map;
+        per_offset.gather_table = per_offset.scatter_table = at::Tensor();
+        map = std::make_shared<const KernelMap>(per_offset);
         const int64_t offsets = map->batched_offsets.numel();
         ASSERT_GT(map->batched_in.numel() / offsets, (int64_t(1) << 18) / (offsets * 64)) << name;
         at::manual_seed(63);

@@ -3,6 +3,9 @@
 #include <ATen/ATen.h>
 #include <ATen/Parallel.h>
 
+#include <algorithm>
+#include <limits>
+
 #include "pumeta/core/error.h"
 #include "pumeta/nn/sparse/coordinate_set.h"
 
@@ -88,7 +91,30 @@ KernelMap KernelMap::transposed() const {
     t.batched_offsets = batched_offsets;
     t.batched_in = batched_out;
     t.batched_out = batched_in;
+    t.gather_table = scatter_table;
+    t.scatter_table = gather_table;
     return t;
+}
+
+void KernelMap::prepare_tables() {
+    const int64_t volume = kernel_volume();
+    // Below a third, the zero slots' GEMM work outweighs what the scatters cost
+    // (bench_nn_sparse_conv compares both paths).
+    if (volume == 0 || 3 * pairs() < output_size * volume ||
+        std::max(input_size, output_size) > std::numeric_limits<int32_t>::max())
+        return;
+    gather_table = at::full({output_size, volume}, -1, at::kInt);
+    scatter_table = at::full({input_size, volume}, -1, at::kInt);
+    int32_t* gather = gather_table.data_ptr<int32_t>();
+    int32_t* scatter = scatter_table.data_ptr<int32_t>();
+    for (int64_t k = 0; k < volume; ++k) {
+        const int64_t* i = in[k].data_ptr<int64_t>();
+        const int64_t* o = out[k].data_ptr<int64_t>();
+        for (int64_t p = 0; p < in[k].numel(); ++p) {
+            gather[o[p] * volume + k] = int32_t(i[p]);
+            scatter[i[p] * volume + k] = int32_t(o[p]);
+        }
+    }
 }
 
 void KernelMap::prepare_batched() {
@@ -118,6 +144,7 @@ KernelMap build_conv_map(const CoordinateSet& set, int64_t kernel_size, int64_t 
     append_offsets(map, set, set.coords(), scaled_offsets(kernel_size, dilation * set.stride()));
     map.identity_offset = map.kernel_volume() / 2;
     map.prepare_batched();
+    map.prepare_tables();
     return map;
 }
 
@@ -128,6 +155,7 @@ KernelMap build_down_map(const CoordinateSet& fine, const CoordinateSet& coarse,
     map.output_size = coarse.size();
     append_offsets(map, fine, coarse.coords(), scaled_offsets(kernel_size, fine.stride()));
     map.prepare_batched();
+    map.prepare_tables();
     return map;
 }
 
@@ -169,6 +197,7 @@ GeneratedCoordinates generate_coordinates(const CoordinateSet& coarse, int64_t k
     result.map.input_size = count;
     result.map.output_size = result.coords.size(0);
     result.map.prepare_batched();
+    result.map.prepare_tables();
     return result;
 }
 

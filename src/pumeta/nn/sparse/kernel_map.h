@@ -41,6 +41,17 @@ struct KernelMap {
     at::Tensor batched_in;
     at::Tensor batched_out;
 
+    /// The same map output-major, for maps dense enough that one GEMM over every (output,
+    /// offset) slot, with zeros where a site has no neighbour, beats a gather-GEMM-scatter per
+    /// offset (narrow layers pay per scattered row, whatever its width):
+    ///   gather_table  int32 [output_size, K]: the input row output o reads through offset k,
+    ///                 or -1;
+    ///   scatter_table int32 [input_size, K]: the output row input i feeds through offset k,
+    ///                 or -1 (the gather table of the transposed map).
+    /// Undefined where the slots outnumber the pairs too much (see prepare_tables).
+    at::Tensor gather_table;
+    at::Tensor scatter_table;
+
     int64_t kernel_volume() const { return int64_t(in.size()); }
     /// Total number of (input, output) pairs over all offsets.
     int64_t pairs() const;
@@ -49,6 +60,9 @@ struct KernelMap {
     /// Fills the batched_* fields when the padded pairs are few (under 2^15) or at most 25%
     /// more than the real ones. Called by the builders below.
     void prepare_batched();
+    /// Fills gather_table and scatter_table when the pairs fill at least a third of the
+    /// output slots (output_size · K). Called by the builders below.
+    void prepare_tables();
 };
 
 /// Stride-1 map of `set` onto itself: input = output + offset·dilation·stride.

@@ -1,6 +1,8 @@
 #include "pumeta/nn/sparse/sparse_conv.h"
 
 #include <ATen/ATen.h>
+#include <ATen/Dispatch.h>
+#include <ATen/Parallel.h>
 #include <torch/csrc/autograd/custom_function.h>
 
 #include <algorithm>
@@ -102,10 +104,85 @@ at::Tensor block_pairs(const at::Tensor& rows2d, int64_t start, int64_t n) {
 /// x with one zero row appended: the row that the batched maps' padding pairs read.
 at::Tensor with_zero_row(const at::Tensor& x) { return at::cat({x, x.new_zeros({1, x.size(1)})}); }
 
+/// Whether the output-major tables serve a product on `features` (they index host memory).
+bool table_path(const KernelMap& map, const at::Tensor& features) {
+    return map.gather_table.defined() && features.device().is_cpu() &&
+           (features.scalar_type() == at::kFloat || features.scalar_type() == at::kDouble);
+}
+
+/// Rows [start, start + n) of the output-major gather into `slots` [n, K·C]: row r, columns
+/// [k·C, (k+1)·C) hold x[table[start + r, k]], or zeros where the entry is -1.
+/// x [M, C] contiguous.
+template <class T>
+void gather_slots(const at::Tensor& x, const at::Tensor& table, int64_t start, int64_t n,
+                  at::Tensor& slots) {
+    const int64_t channels = x.size(1), volume = table.size(1);
+    const T* source = x.data_ptr<T>();
+    const int32_t* rows = table.data_ptr<int32_t>() + start * volume;
+    T* target = slots.data_ptr<T>();
+    at::parallel_for(0, n, 256, [&](int64_t begin, int64_t end) {
+        for (int64_t r = begin; r < end; ++r)
+            for (int64_t k = 0; k < volume; ++k) {
+                T* slot = target + (r * volume + k) * channels;
+                const int32_t i = rows[r * volume + k];
+                if (i < 0)
+                    std::fill(slot, slot + channels, T(0));
+                else
+                    std::copy(source + i * channels, source + (i + 1) * channels, slot);
+            }
+    });
+}
+
+/// Rows per block of the output-major path: gathered slots of about kBlockFloats floats.
+int64_t table_block_rows(int64_t volume, int64_t channels) {
+    return std::max<int64_t>(16, kBlockFloats / (volume * channels));
+}
+
+/// kernel_map_product through the gather table: per block of output rows, one gather of
+/// every (row, offset) slot and one GEMM with the weight as [K·Cin, Cout]. No scatter.
+at::Tensor table_product(const at::Tensor& features, const at::Tensor& weight,
+                         const at::Tensor& table) {
+    at::Tensor x = features.contiguous();
+    const int64_t rows = table.size(0), volume = table.size(1), channels = x.size(1);
+    at::Tensor w = weight.contiguous().view({volume * channels, weight.size(2)});
+    at::Tensor out = at::empty({rows, weight.size(2)}, x.options());
+    const int64_t block = table_block_rows(volume, channels);
+    at::Tensor slots = at::empty({std::min(block, rows), volume * channels}, x.options());
+    for (int64_t start = 0; start < rows; start += block) {
+        const int64_t n = std::min(block, rows - start);
+        at::Tensor part = slots.narrow(0, 0, n);
+        AT_DISPATCH_FLOATING_TYPES(x.scalar_type(), "gather_slots",
+                                   [&] { gather_slots<scalar_t>(x, table, start, n, part); });
+        at::Tensor rows_out = out.narrow(0, start, n);
+        at::mm_out(rows_out, part, w);
+    }
+    return out;
+}
+
+/// kernel_map_weight_gradient through the gather table: Σ over blocks of
+/// slots(features)ᵀ · grad_out, as [K, Cin, Cout].
+at::Tensor table_weight_gradient(const at::Tensor& features, const at::Tensor& grad_out,
+                                 const at::Tensor& table) {
+    at::Tensor x = features.contiguous(), g = grad_out.contiguous();
+    const int64_t rows = table.size(0), volume = table.size(1), channels = x.size(1);
+    at::Tensor sum = at::zeros({volume * channels, g.size(1)}, x.options());
+    const int64_t block = table_block_rows(volume, channels);
+    at::Tensor slots = at::empty({std::min(block, rows), volume * channels}, x.options());
+    for (int64_t start = 0; start < rows; start += block) {
+        const int64_t n = std::min(block, rows - start);
+        at::Tensor part = slots.narrow(0, 0, n);
+        AT_DISPATCH_FLOATING_TYPES(x.scalar_type(), "gather_slots",
+                                   [&] { gather_slots<scalar_t>(x, table, start, n, part); });
+        sum.addmm_(part.t(), g.narrow(0, start, n));
+    }
+    return sum.view({volume, channels, g.size(1)});
+}
+
 /// Σ_k scatter(map.out[k], gather(map.in[k], features) · weight[k]), without the bias. Never
 /// recorded by autograd (KernelMapProduct carries its gradient), so always in row blocks.
 at::Tensor kernel_map_product(const at::Tensor& features, const at::Tensor& weight,
                               const KernelMap& map) {
+    if (table_path(map, features)) return table_product(features, weight, map.gather_table);
     // Start from the centre tap where it maps every site to itself: no gather, no scatter.
     at::Tensor out;
     if (map.identity_offset >= 0)
@@ -145,6 +222,8 @@ at::Tensor kernel_map_product(const at::Tensor& features, const at::Tensor& weig
 /// [K, Cin, Cout] whose row k is gather(map.in[k], features)ᵀ · gather(map.out[k], grad_out).
 at::Tensor kernel_map_weight_gradient(const at::Tensor& features, const at::Tensor& grad_out,
                                       const KernelMap& map) {
+    if (!recorded(features, grad_out) && table_path(map, features))
+        return table_weight_gradient(features, grad_out, map.gather_table);
     std::vector<at::Tensor> per_offset(size_t(map.kernel_volume()));
     if (map.identity_offset >= 0)
         per_offset[size_t(map.identity_offset)] = features.t().mm(grad_out);
