@@ -219,10 +219,10 @@ class SupervisedStage final : public RunStage {
         Batch batch = data_.loader.next();
         adam_.set_lr(config_.schedule.at(step));
         model_.update_buffers(batch.input, model_.parameters());
-        LossTerms terms = auxiliary_.empty()
-                              ? model_.loss_terms(batch.input, batch.gt, model_.parameters(), step)
-                              : model_.training_terms(batch.input, batch.gt, model_.parameters(),
-                                                      auxiliary_.parameters(), step);
+        // training_terms: loss_terms unless the backbone trains otherwise (auxiliary networks,
+        // a curriculum).
+        LossTerms terms = model_.training_terms(batch.input, batch.gt, model_.parameters(),
+                                                auxiliary_.parameters(), step);
         at::Tensor loss = sum_of(terms);
         ParamMap grads = gradients(loss, model_.parameters());
         double loss_value = loss.item<double>();
