@@ -9,6 +9,7 @@
 #include "pumeta/models/dispu.h"
 #include "pumeta/models/mpu.h"
 #include "pumeta/models/pudense.h"
+#include "pumeta/models/pugan.h"
 #include "pumeta/models/pugcn.h"
 
 namespace pumeta {
@@ -34,6 +35,7 @@ void register_builtin_backbones() {
     register_backbone("pugcn", make_pugcn, pugcn_small_config());
     register_backbone("dispu", make_dispu, dispu_small_config());
     register_backbone("pudense", make_pudense, pudense_small_config());
+    register_backbone("pugan", make_pugan, pugan_small_config());
     register_backbone("mpu", make_mpu, mpu_small_config());
 }
 
