@@ -248,6 +248,86 @@ TEST(PuDense, OverfitsOneSmallCloud) {
     EXPECT_GT(recall_after, recall_before + 0.2);
 }
 
+nlohmann::json refined_config(double range = 1.0) {
+    nlohmann::json config = tiny_config(4);
+    config["refine"] = true;
+    config["refine_range"] = range;
+    config["batch_stats_at_inference"] = true;
+    return config;
+}
+
+TEST(PuDense, RefinementStartsAtTheFaithfulOutputsAndOffTheGrid) {
+    PuDense faithful(PuDenseOptions::from_json(tiny_config(4)));
+    PuDense refined(PuDenseOptions::from_json(refined_config()));
+    EXPECT_DOUBLE_EQ(faithful.output_grid(), faithful.voxel_size());
+    EXPECT_EQ(refined.output_grid(), 0.0);
+    // The same seed draws the faithful network's weights first; the refinement adds its own.
+    int64_t shared = 0;
+    for (const auto& [name, p] : faithful.parameters()) {
+        ASSERT_TRUE(refined.parameters().count(name)) << name;
+        EXPECT_TRUE(refined.parameters().at(name).equal(p)) << name;
+        ++shared;
+    }
+    EXPECT_EQ(int64_t(refined.parameters().size()), shared + 4);
+    at::Tensor target = test::sheet(2, 64, 7);
+    at::Tensor input = target.narrow(1, 0, 16);
+    // Running statistics as the faithful model's: only the zero-initialised offsets differ.
+    for (auto& [name, b] : refined.buffers()) b.copy_(faithful.buffers().at(name));
+    nlohmann::json batch_config = tiny_config(4);
+    batch_config["batch_stats_at_inference"] = true;
+    PuDense faithful_batch(PuDenseOptions::from_json(batch_config));
+    EXPECT_TRUE(refined.upsample(input).equal(faithful_batch.upsample(input)));
+    const LossTerms terms = refined.loss_terms(input, target, refined.parameters());
+    ASSERT_EQ(terms.size(), 2u);
+    EXPECT_EQ(terms[0].first, "bce");
+    EXPECT_EQ(terms[1].first, "refine_cd");
+    EXPECT_DOUBLE_EQ(terms[0].second.item<double>(),
+                     faithful.loss(input, target, faithful.parameters()).item<double>());
+}
+
+TEST(PuDense, RefinementOffsetsStayWithinTheirRangeOfTheVoxelCentres) {
+    PuDense refined(PuDenseOptions::from_json(refined_config(/*range=*/0.5)));
+    {
+        at::NoGradGuard no_grad;
+        refined.parameters().at("refine.offset.bias").fill_(50.0);  // tanh saturates
+    }
+    at::Tensor input = test::sheet(1, 64, 8).narrow(1, 0, 16);
+    at::Tensor moved = refined.upsample(input)[0];
+    const double h = refined.voxel_size();
+    // Voxel centres lie at (i + 0.5)·h; offsets saturated at +0.5 h move every coordinate to a
+    // multiple of h.
+    at::Tensor steps = moved / h;
+    EXPECT_LT((steps - steps.round()).abs().max().item<double>(), 1e-4);
+    at::Tensor centres = PuDense(PuDenseOptions::from_json(tiny_config(4))).upsample(input)[0] / h;
+    EXPECT_GT((centres - centres.round()).abs().min().item<double>(), 0.49);
+}
+
+TEST(PuDense, RefinementLearnsOffsetsThatLowerTheChamferDistance) {
+    PuDense refined(PuDenseOptions::from_json(refined_config()));
+    at::Tensor target = test::sheet(1, 96, 9);
+    at::Tensor input = target.narrow(1, 0, 24);
+    ParamMap& params = refined.parameters();
+    auto cd = [&] { return chamfer_loss(refined.upsample(input), target).item<double>(); };
+    // Learn the occupancy first, then compare the refinement's CD term before and after.
+    AdamOptions adam_options;
+    adam_options.lr = 2e-2;
+    Adam adam(params, adam_options);
+    for (int step = 0; step < 60; ++step)
+        adam.step(gradients(refined.loss(input, target, params), params));
+    PuDense faithful(PuDenseOptions::from_json(refined_config()));
+    for (auto& [name, p] : faithful.parameters()) {
+        at::NoGradGuard no_grad;
+        p.copy_(params.at(name));
+    }
+    {
+        at::NoGradGuard no_grad;
+        faithful.parameters().at("refine.offset.weight").zero_();
+        faithful.parameters().at("refine.offset.bias").zero_();
+    }
+    const double centres = chamfer_loss(faithful.upsample(input), target).item<double>();
+    EXPECT_LT(cd(), 0.95 * centres) << "voxel centres " << centres;
+}
+
 TEST(PuDense, DownsamplerKeepsAUniformRandomSubset) {
     auto model = tiny_model(4);
     at::Tensor dense = test::sheet(2, 64, 6);

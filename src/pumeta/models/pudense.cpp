@@ -178,6 +178,13 @@ PuDenseOptions PuDenseOptions::from_json(const nlohmann::json& config) {
             if (!value.is_boolean())
                 throw_input_error(kContext, "'batch_stats_at_inference' must be a boolean");
             options.batch_stats_at_inference = value.get<bool>();
+        } else if (key == "refine") {
+            if (!value.is_boolean()) throw_input_error(kContext, "'refine' must be a boolean");
+            options.refine = value.get<bool>();
+        } else if (key == "refine_weight") {
+            options.refine_weight = positive_number(value, key);
+        } else if (key == "refine_range") {
+            options.refine_range = positive_number(value, key);
         } else if (key == "seed") {
             options.seed = seed_field(value, kContext);
         } else {
@@ -207,6 +214,9 @@ nlohmann::json PuDenseOptions::to_json() const {
             {"loss_scale", loss_scale},
             {"bn_momentum", bn_momentum},
             {"batch_stats_at_inference", batch_stats_at_inference},
+            {"refine", refine},
+            {"refine_weight", refine_weight},
+            {"refine_range", refine_range},
             {"seed", seed}};
 }
 
@@ -234,6 +244,14 @@ PuDense::PuDense(const PuDenseOptions& options) : options_(options) {
     }
     add_sparse_conv(params_, "conv1_tr", c[1], c[0], 3, /*bias=*/false, rng);
     add_sparse_conv(params_, "final", c[0], 1, 1, /*bias=*/true, rng);
+    if (options.refine) {
+        // Drawn after the faithful network, which the same seed therefore reproduces.
+        add_sparse_conv(params_, "refine.hidden", c[0], c[0], 1, /*bias=*/true, rng);
+        add_sparse_conv(params_, "refine.offset", c[0], 3, 1, /*bias=*/true, rng);
+        at::NoGradGuard no_grad;
+        params_.at("refine.offset.weight").zero_();
+        params_.at("refine.offset.bias").zero_();
+    }
 }
 
 Occupancy PuDense::occupancy(const CoordinateSetPtr& voxels, const ParamMap& params,
@@ -267,7 +285,39 @@ Occupancy PuDense::occupancy(const CoordinateSetPtr& voxels, const ParamMap& par
     // The stride-1 input sites are among the generated ones (the kernel covers each fine
     // voxel's offset from its stride-2 parent), so the sum lives on the generated sites.
     out = layers.relu(layers.conv(add_onto(generated, skip[0]), "conv1_tr", 3));
-    return {out.coords(), layers.conv(out, "final", 1).features().squeeze(1)};
+    Occupancy occ{out.coords(), layers.conv(out, "final", 1).features().squeeze(1), {}};
+    if (options_.refine) {
+        at::Tensor raw =
+            layers.conv(layers.relu(layers.conv(out, "refine.hidden", 1)), "refine.offset", 1)
+                .features();
+        occ.offsets = at::tanh(raw) * (options_.refine_range * voxel_size());
+    }
+    return occ;
+}
+
+std::vector<at::Tensor> PuDense::selected(const Occupancy& occ, int64_t batch,
+                                          int64_t wanted) const {
+    at::Tensor logits = occ.logits.detach().to(at::kCPU);
+    at::Tensor batch_index = occ.sites->batch_index();
+    std::vector<at::Tensor> rows_of;
+    for (int64_t b = 0; b < batch; ++b) {
+        at::Tensor rows = (batch_index == b).nonzero().view(-1);
+        at::Tensor ranked =
+            std::get<1>(logits.index_select(0, rows).topk(std::min(wanted, rows.numel())));
+        // Too few candidates: repeat the ranking so that the count stays exactly `wanted`.
+        at::Tensor order = at::arange(wanted, at::kLong).remainder(ranked.numel());
+        rows_of.push_back(rows.index_select(0, ranked.index_select(0, order)));
+    }
+    return rows_of;
+}
+
+at::Tensor PuDense::output_points(const Occupancy& occ, int64_t batch, int64_t wanted) const {
+    at::Tensor points = voxel_centres(occ.sites->coords(), voxel_size());
+    if (occ.offsets.defined()) points = points.to(occ.offsets.options()) + occ.offsets;
+    std::vector<at::Tensor> outputs;
+    for (const at::Tensor& rows : selected(occ, batch, wanted))
+        outputs.push_back(points.index_select(0, rows.to(points.device())));
+    return at::stack(outputs);
 }
 
 void PuDense::check_input(const at::Tensor& x, const ParamMap& params, const char* what) const {
@@ -302,24 +352,16 @@ at::Tensor PuDense::upsample(const at::Tensor& x, const ParamMap& params) const 
     norm.running = &buffers_;
     Occupancy occ = occupancy(voxels(x), params, norm);
 
-    const int64_t batch = x.size(0), wanted = options_.ratio * x.size(1);
-    at::Tensor logits = occ.logits.to(at::kCPU);
-    at::Tensor centres = voxel_centres(occ.sites->coords(), voxel_size());
-    std::vector<at::Tensor> outputs;
-    for (int64_t b = 0; b < batch; ++b) {
-        at::Tensor rows = (occ.sites->batch_index() == b).nonzero().view(-1);
-        at::Tensor ranked =
-            std::get<1>(logits.index_select(0, rows).topk(std::min(wanted, rows.numel())));
-        // Too few candidates: repeat the ranking so that the count stays exactly rN.
-        at::Tensor order = at::arange(wanted, at::kLong).remainder(ranked.numel());
-        outputs.push_back(
-            centres.index_select(0, rows.index_select(0, ranked.index_select(0, order))));
-    }
-    return at::stack(outputs).to(x.options());
+    return output_points(occ, x.size(0), options_.ratio * x.size(1)).to(x.options());
 }
 
 at::Tensor PuDense::loss(const at::Tensor& input, const at::Tensor& target, const ParamMap& params,
                          int64_t step) const {
+    return sum_of(loss_terms(input, target, params, step));
+}
+
+LossTerms PuDense::loss_terms(const at::Tensor& input, const at::Tensor& target,
+                              const ParamMap& params, int64_t step) const {
     check_input(input, params, "pudense input");
     check_batched_points(target, "pudense target");
     if (target.size(0) != input.size(0))
@@ -331,7 +373,13 @@ at::Tensor PuDense::loss(const at::Tensor& input, const at::Tensor& target, cons
     at::Tensor labels = (truth->lookup(occ.sites->coords()) >= 0).to(occ.logits.options());
     // BCE with logits, log(1 + e^z) − y·z: softplus is differentiable twice.
     at::Tensor bce = (at::softplus(occ.logits) - labels * occ.logits).mean();
-    return options_.loss_scale * bce;
+    LossTerms terms = {{"bce", options_.loss_scale * bce}};
+    if (options_.refine) {
+        at::Tensor moved = output_points(occ, input.size(0), target.size(1));
+        terms.emplace_back(
+            "refine_cd", options_.refine_weight * chamfer_loss(moved, target.to(moved.options())));
+    }
+    return terms;
 }
 
 nlohmann::json PuDense::config_for_ratio(int64_t ratio) const {

@@ -51,6 +51,14 @@ struct PuDenseOptions {
     /// Normalise with each input's own statistics in upsample() too (as meta-training's outer
     /// loss does) instead of the running statistics.
     bool batch_stats_at_inference = false;
+    /// Sub-voxel refinement (pumeta's extension, off in the original; docs/design.md,
+    /// "PU-Dense"): a two-layer per-voxel head on the last features moves each selected voxel
+    /// centre by an offset of at most refine_range voxel edges per axis, trained with
+    /// refine_weight · CD(moved points, target) added to the BCE. Its last layer starts at
+    /// zero, so a refined model initialised from a faithful one starts at its outputs.
+    bool refine = false;
+    double refine_weight = 1000.0;
+    double refine_range = 1.0;
     /// Seed of the parameter initialisation.
     uint64_t seed = 0;
 
@@ -64,6 +72,9 @@ struct PuDenseOptions {
 struct Occupancy {
     CoordinateSetPtr sites;  ///< the generated voxels, batch column = batch element
     at::Tensor logits;       ///< [G]
+    /// [G,3]: the refinement's offsets in the input frame (PuDenseOptions::refine), else
+    /// undefined.
+    at::Tensor offsets;
 };
 
 class PuDense : public Backbone {
@@ -85,23 +96,30 @@ class PuDense : public Backbone {
     const PuDenseOptions& options() const { return options_; }
     /// Voxel edge length h in the input frame.
     double voxel_size() const { return 1.0 / options_.resolution; }
-    double output_grid() const override { return voxel_size(); }
+    /// The voxel edge; 0 (continuous outputs) with the sub-voxel refinement.
+    double output_grid() const override { return options_.refine ? 0.0 : voxel_size(); }
 
     /// The network on occupied voxels (stride-1 sites, feature 1 each).
     Occupancy occupancy(const CoordinateSetPtr& voxels, const ParamMap& params,
                         const BatchNormContext& norm) const;
 
     /// x [B,N,3] -> [B,rN,3]: the centres of each element's rN most likely voxels (running
-    /// statistics unless batch_stats_at_inference). When fewer voxels are generated than rN,
-    /// the ranked ones repeat cyclically, so the count is always exact.
+    /// statistics unless batch_stats_at_inference), moved by their offsets with the
+    /// refinement. When fewer voxels are generated than rN, the ranked ones repeat
+    /// cyclically, so the count is always exact.
     at::Tensor upsample(const at::Tensor& x, const ParamMap& params) const override;
     using Backbone::upsample;
 
     /// loss_scale · BCE-with-logits between the occupancy of every generated voxel and its
-    /// membership in target's voxels, averaged over the generated voxels of the batch; batch
-    /// statistics; `step` unused. Twice differentiable in params.
+    /// membership in target's voxels, averaged over the generated voxels of the batch; with
+    /// the refinement plus refine_weight · CD between the moved centres of the M most likely
+    /// voxels (M = target points, as upsample() selects) and the target. Batch statistics;
+    /// `step` unused. Twice differentiable in params.
     at::Tensor loss(const at::Tensor& input, const at::Tensor& target, const ParamMap& params,
                     int64_t step = 0) const override;
+    /// "bce" and, with the refinement, "refine_cd" (weighted).
+    LossTerms loss_terms(const at::Tensor& input, const at::Tensor& target, const ParamMap& params,
+                         int64_t step = 0) const override;
 
     /// downsample_points(dense, M / r, options().downsampler, seed).
     at::Tensor downsample(const at::Tensor& dense, uint64_t seed) const override;
@@ -126,6 +144,11 @@ class PuDense : public Backbone {
 
   private:
     void check_input(const at::Tensor& x, const ParamMap& params, const char* what) const;
+    /// Per batch element, the rows of occ's sites it outputs: its `wanted` most likely voxels
+    /// by logit, repeated cyclically when it has fewer.
+    std::vector<at::Tensor> selected(const Occupancy& occ, int64_t batch, int64_t wanted) const;
+    /// The selected voxels' centres (moved by occ.offsets when defined): [batch, wanted, 3].
+    at::Tensor output_points(const Occupancy& occ, int64_t batch, int64_t wanted) const;
 
     PuDenseOptions options_;
 
