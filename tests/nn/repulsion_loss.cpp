@@ -6,6 +6,8 @@
 #include <gtest/gtest.h>
 #include <torch/csrc/autograd/autograd.h>
 
+#include <cmath>
+
 #include "pumeta/core/error.h"
 
 namespace pumeta {
@@ -53,6 +55,19 @@ TEST(RepulsionLoss, TooFewPointsAreInputErrors) {
     EXPECT_THROW(repulsion_loss(at::zeros({1, 4, 3}), 4), InputError);
     EXPECT_THROW(repulsion_loss(at::zeros({1, 4, 3}), 0), InputError);
     EXPECT_THROW(repulsion_loss(at::zeros({4, 3}), 1), InputError);
+}
+
+TEST(PuNetRepulsionLoss, HandComputedPairAndItsGradient) {
+    // Two points 0.01 apart, one neighbour each: 0.07 − d·exp(−d²/0.03²) with d = 0.01; the
+    // gradient pushes them apart (d·e^{−d²/h²} grows with d below h/√2).
+    at::Tensor close = at::tensor({0.0, 0.0, 0.0, 0.01, 0.0, 0.0}, at::kDouble).view({1, 2, 3});
+    close.requires_grad_(true);
+    at::Tensor loss = punet_repulsion_loss(close, 1);
+    EXPECT_NEAR(loss.item<double>(), 0.07 - 0.01 * std::exp(-1e-4 / 9e-4), 1e-12);
+    loss.backward();
+    EXPECT_GT(close.grad()[0][0][0].item<double>(), 0);
+    EXPECT_LT(close.grad()[0][1][0].item<double>(), 0);
+    EXPECT_THROW(punet_repulsion_loss(at::zeros({1, 4, 3}), 4), InputError);
 }
 
 }  // namespace pumeta

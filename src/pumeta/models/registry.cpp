@@ -7,6 +7,7 @@
 #include "pumeta/core/error.h"
 #include "pumeta/models/backbone.h"
 #include "pumeta/models/dispu.h"
+#include "pumeta/models/metapu.h"
 #include "pumeta/models/mpu.h"
 #include "pumeta/models/pudense.h"
 #include "pumeta/models/pugan.h"
@@ -35,6 +36,7 @@ void register_builtin_backbones() {
     register_backbone("pugcn", make_pugcn, pugcn_small_config());
     register_backbone("dispu", make_dispu, dispu_small_config());
     register_backbone("pudense", make_pudense, pudense_small_config());
+    register_backbone("metapu", make_metapu, metapu_small_config());
     register_backbone("pugan", make_pugan, pugan_small_config());
     register_backbone("mpu", make_mpu, mpu_small_config());
 }
