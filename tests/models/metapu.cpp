@@ -10,6 +10,7 @@
 #include <set>
 
 #include "pumeta/core/error.h"
+#include "pumeta/nn/chamfer_loss.h"
 #include "pumeta/nn/gradients.h"
 #include "support/test_util.h"
 
@@ -141,6 +142,28 @@ TEST(MetaPu, TrainingTermsDrawTheInputFromTheGroundTruthAtTheStepsScale) {
     for (size_t i = 0; i < a.size(); ++i)
         EXPECT_EQ(a[i].second.item<double>(), b[i].second.item<double>()) << a[i].first;
     EXPECT_TRUE(std::isfinite(sum_of(a).item<double>()));
+}
+
+TEST(MetaPu, ChamferReconstructionReplacesTheSinkhornTermOnly) {
+    nlohmann::json config = metapu_small_config();
+    MetaPu sinkhorn(MetaPuOptions::from_json(config));
+    config["reconstruction"] = "chamfer";
+    MetaPu chamfer(MetaPuOptions::from_json(config));
+    EXPECT_EQ(MetaPuOptions::from_json(chamfer.config()).reconstruction, "chamfer");
+    at::Tensor gt = test::sheet(2, 64, 9);
+    at::Tensor input = gt.narrow(1, 0, 16);
+    LossTerms a = sinkhorn.loss_terms(input, gt, sinkhorn.parameters());
+    LossTerms b = chamfer.loss_terms(input, gt, chamfer.parameters());
+    ASSERT_EQ(a.size(), b.size());
+    EXPECT_EQ(b[0].first, "chamfer");
+    at::Tensor out = chamfer.forward(input, chamfer.parameters(), 4.0, 64).points;
+    EXPECT_NEAR(b[0].second.item<double>(), chamfer_loss(out, gt).item<double>(), 1e-6);
+    for (size_t i = 1; i < a.size(); ++i) {
+        EXPECT_EQ(a[i].first, b[i].first);
+        EXPECT_EQ(a[i].second.item<double>(), b[i].second.item<double>()) << a[i].first;
+    }
+    config["reconstruction"] = "emd";
+    EXPECT_THROW(MetaPuOptions::from_json(config), InputError);
 }
 
 TEST(MetaPu, SparseInputKeepsDistinctPointsOfTheCloud) {

@@ -12,6 +12,7 @@
 #include "pumeta/geometry/knn.h"
 #include "pumeta/geometry/sampling.h"
 #include "pumeta/models/config_fields.h"
+#include "pumeta/nn/chamfer_loss.h"
 #include "pumeta/nn/conv.h"
 #include "pumeta/nn/graph.h"
 #include "pumeta/nn/init.h"
@@ -168,6 +169,12 @@ MetaPuOptions MetaPuOptions::from_json(const nlohmann::json& config) {
             *p->second = positive_number_field(value, key, kContext);
         } else if (auto w = weights.find(key); w != weights.end()) {
             *w->second = non_negative_number_field(value, key, kContext);
+        } else if (key == "reconstruction") {
+            if (value != "sinkhorn" && value != "chamfer")
+                throw_input_error(kContext,
+                                  "'reconstruction' must be \"sinkhorn\" or \"chamfer\", found {}",
+                                  value.dump());
+            o.reconstruction = value.get<std::string>();
         } else if (key == "sinkhorn_gradient") {
             if (value != "envelope" && value != "unrolled")
                 throw_input_error(kContext,
@@ -203,6 +210,7 @@ nlohmann::json MetaPuOptions::to_json() const {
             {"generator_hidden", generator_hidden},
             {"candidates", candidates},
             {"patch_size", patch_size},
+            {"reconstruction", reconstruction},
             {"blur", blur},
             {"reach", reach},
             {"sinkhorn_scaling", sinkhorn_scaling},
@@ -387,8 +395,12 @@ LossTerms MetaPu::loss_terms(const at::Tensor& input, const at::Tensor& target,
                           input.size(0));
     const int64_t m = target.size(1);
     MetaPuOutput out = forward(input, params, double(m) / double(input.size(1)), m);
-    LossTerms terms = {
-        {"sinkhorn", sinkhorn_divergence(out.points, target, sinkhorn_options(options_))}};
+    LossTerms terms;
+    if (options_.reconstruction == "chamfer")
+        terms.emplace_back("chamfer", chamfer_loss(out.points, target));
+    else
+        terms.emplace_back("sinkhorn",
+                           sinkhorn_divergence(out.points, target, sinkhorn_options(options_)));
     if (options_.scale_weights_penalty > 0)
         terms.emplace_back("scale_weights",
                            options_.scale_weights_penalty * out.scale_weights_norm);

@@ -36,6 +36,9 @@ struct MetaPuOptions {
     /// Input points per patch at `ratio` (config_for_ratio keeps patch_size·ratio, about the
     /// 4,096-point ground-truth patches of training).
     int64_t patch_size = 256;
+    /// The reconstruction term: "sinkhorn" (the original's) or "chamfer" (chamfer_loss, PU-GCN's
+    /// CD: a fraction of the Sinkhorn's cost per step on CPU; docs/design.md, "Meta-PU").
+    std::string reconstruction = "sinkhorn";
     /// Sinkhorn divergence: blur (ε = blur²), reach (ρ = reach²), ε-scaling factor, and how
     /// it is differentiated: "envelope" or "unrolled" (nn/sinkhorn_loss.h).
     double blur = 1e-3;
@@ -102,8 +105,8 @@ class MetaPu : public Backbone {
     using Backbone::upsample;
 
     /// The loss of upsampling `input` [B,N,3] to `target` [B,M,3] at scale M/N (InputError
-    /// unless 1 < M/N <= candidates²); `step` unused. Terms: "sinkhorn", "scale_weights",
-    /// "uniform", "repulsion" (those with a weight).
+    /// unless 1 < M/N <= candidates²); `step` unused. Terms: "sinkhorn" (or "chamfer"),
+    /// "scale_weights", "uniform", "repulsion" (those with a weight).
     at::Tensor loss(const at::Tensor& input, const at::Tensor& target, const ParamMap& params,
                     int64_t step = 0) const override;
     LossTerms loss_terms(const at::Tensor& input, const at::Tensor& target, const ParamMap& params,
