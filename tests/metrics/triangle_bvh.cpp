@@ -223,6 +223,89 @@ TEST(TriangleBvh, AcceptsNoQueriesAndRejectsBadMeshes) {
     EXPECT_THROW(TriangleBvh({mesh.vertices, mesh.faces.to(at::kInt)}), InputError);
 }
 
+/// Oracle for first_hit: the smallest positive crossing over all triangles, by plane
+/// intersection and a barycentric inside test (independent of Möller–Trumbore).
+double brute_force_first_hit(const TriangleMesh& mesh, const Vec& o, const Vec& d, double max_t) {
+    at::Tensor v = mesh.vertices.to(at::kDouble);
+    double best = std::numeric_limits<double>::infinity();
+    for (int64_t f = 0; f < mesh.num_faces(); ++f) {
+        Vec corner[3];
+        for (int k = 0; k < 3; ++k) {
+            at::Tensor row = v[mesh.faces[f][k].item<int64_t>()];
+            corner[k] = {row[0].item<double>(), row[1].item<double>(), row[2].item<double>()};
+        }
+        Vec n = cross(corner[1] - corner[0], corner[2] - corner[0]);
+        double denom = dot(n, d);
+        if (std::abs(denom) < 1e-14) continue;
+        double t = dot(n, corner[0] - o) / denom;
+        if (t <= 0 || t > max_t) continue;
+        Vec p = o + t * d;
+        // Inside when p is on the inner side of all three edges (same sign as n).
+        bool inside = true;
+        for (int k = 0; k < 3; ++k)
+            if (dot(cross(corner[(k + 1) % 3] - corner[k], p - corner[k]), n) < -1e-12)
+                inside = false;
+        if (inside) best = std::min(best, t);
+    }
+    return best;
+}
+
+TEST(TriangleBvhRay, HitsAKnownPlaneAtTheKnownRange) {
+    // The square [-10, 10]^2 at z = 0; a ray from (1, 2, 3) going down at 45 degrees in x.
+    TriangleMesh square{
+        at::tensor({-10.f, -10.f, 0.f, 10.f, -10.f, 0.f, 10.f, 10.f, 0.f, -10.f, 10.f, 0.f})
+            .view({4, 3}),
+        at::tensor({0, 1, 2, 0, 2, 3}, at::kLong).view({2, 3})};
+    TriangleBvh bvh(square);
+    const double o[3] = {1, 2, 3};
+    const double down45[3] = {std::sqrt(0.5), 0, -std::sqrt(0.5)};
+    EXPECT_NEAR(bvh.first_hit(o, down45, 100), 3 * std::sqrt(2.0), 1e-12);
+    const double down[3] = {0, 0, -2};  // not unit: t in its units
+    EXPECT_NEAR(bvh.first_hit(o, down, 100), 1.5, 1e-12);
+    EXPECT_TRUE(std::isinf(bvh.first_hit(o, down45, 4.0)));  // beyond max_t
+    const double up[3] = {0, 0, 1};
+    EXPECT_TRUE(std::isinf(bvh.first_hit(o, up, 100)));  // away from the plane
+    const double along[3] = {1, 0, 0};
+    EXPECT_TRUE(std::isinf(bvh.first_hit(o, along, 100)));  // parallel
+    const double below[3] = {0, 0, -1};
+    EXPECT_NEAR(bvh.first_hit(below, up, 100), 1.0, 1e-12);  // from the back side
+    // Through the diagonal the two triangles share, at many points: never a gap.
+    for (int i = 0; i < 200; ++i) {
+        const double x = -9.5 + 19.0 * i / 199;
+        const double on_edge[3] = {x, x, 0.7};
+        const double slanted[3] = {0.1, -0.3, -0.7};  // hits (x + 0.1, x - 0.3): off the edge
+        EXPECT_NEAR(bvh.first_hit(on_edge, down, 100), 0.35, 1e-12) << x;
+        EXPECT_NEAR(bvh.first_hit(on_edge, slanted, 100), 1.0, 1e-12) << x;
+    }
+}
+
+TEST(TriangleBvhRay, MatchesBruteForceFirstHits) {
+    const TriangleMesh mesh = random_mesh(300, 400);
+    TriangleBvh bvh(mesh);
+    at::Tensor origins = uniform_random_points(300, 5).to(at::kDouble) * 2.0;
+    at::Tensor directions = uniform_random_points(300, 6).to(at::kDouble);
+    at::Tensor hits = bvh.first_hits(origins, directions, 50.0);
+    ASSERT_EQ(hits.scalar_type(), at::kDouble);
+    int64_t hit_count = 0;
+    for (int64_t i = 0; i < origins.size(0); ++i) {
+        Vec o = {origins[i][0].item<double>(), origins[i][1].item<double>(),
+                 origins[i][2].item<double>()};
+        Vec d = {directions[i][0].item<double>(), directions[i][1].item<double>(),
+                 directions[i][2].item<double>()};
+        double expected = brute_force_first_hit(mesh, o, d, 50.0);
+        double got = hits[i].item<double>();
+        if (std::isinf(expected)) {
+            EXPECT_TRUE(std::isinf(got)) << "ray " << i << ": " << got;
+        } else {
+            ++hit_count;
+            EXPECT_NEAR(got, expected, 1e-9) << "ray " << i;
+        }
+    }
+    EXPECT_GT(hit_count, 30);  // the rays start among the triangles: many hit (49 here)
+    EXPECT_THROW(bvh.first_hits(origins, directions.narrow(0, 0, 10), 1.0), InputError);
+    EXPECT_THROW(bvh.first_hits(origins, at::zeros({300, 2}), 1.0), InputError);
+}
+
 // The unit square at z = 0 as two triangles. Points: (0.5, 0.5, 0.25) above it (0.25),
 // (2, 0.5, 0) beside edge x = 1 (1), (0.2, 0.3, 0) on it (0), (-3, -4, 0) beyond the corner
 // (0,0) (5). Mean = (0.25 + 1 + 0 + 5) / 4 = 1.5625.

@@ -1,5 +1,5 @@
-// The triangle BVH (median splits, ordered closest-point traversal) and the exact
-// point-triangle distance it evaluates at its leaves.
+// The triangle BVH (median splits, ordered closest-point traversal), the exact
+// point-triangle distance it evaluates at its leaves, and first-hit ray casting through it.
 #include "pumeta/metrics/triangle_bvh.h"
 
 #include <ATen/ATen.h>
@@ -122,7 +122,48 @@ struct Aabb {
         }
         return sum;
     }
+    /// The ray parameter where origin + t·direction enters the box (slab test; inv = 1 /
+    /// direction per axis, infinite for a zero component), or +infinity when it misses the box
+    /// within (0, max_t].
+    double entry(const double origin[3], const double inv[3], double max_t) const {
+        double near = 0, far = max_t;
+        for (int d = 0; d < 3; ++d) {
+            double t0 = (lo[d] - origin[d]) * inv[d], t1 = (hi[d] - origin[d]) * inv[d];
+            if (t0 > t1) std::swap(t0, t1);
+            // NaN (0 · infinity: the ray lies in a slab plane) compares false: no narrowing.
+            if (t0 > near) near = t0;
+            if (t1 < far) far = t1;
+            if (near > far) return std::numeric_limits<double>::infinity();
+        }
+        return near;
+    }
 };
+
+/// Barycentric slack of ray_triangle: a ray through an edge shared by two triangles would
+/// otherwise miss both when rounding puts it just outside each; it widens each triangle by
+/// this fraction of its size.
+constexpr double kEdgeSlack = 1e-9;
+
+/// Möller–Trumbore: the t > 0 where the ray crosses triangle (a, b, c), +infinity when it
+/// does not (or the triangle is degenerate, or the ray is parallel to its plane).
+double ray_triangle(const double origin[3], const double direction[3], const double a[3],
+                    const double b[3], const double c[3]) {
+    constexpr double kInf = std::numeric_limits<double>::infinity();
+    Vec3 ab = sub(b, a), ac = sub(c, a);
+    Vec3 dir = {direction[0], direction[1], direction[2]};
+    Vec3 p = cross(dir, ac);
+    double det = dot(ab, p);
+    if (det == 0 || !std::isfinite(det)) return kInf;
+    double inv_det = 1.0 / det;
+    Vec3 ao = sub(origin, a);
+    double u = dot(ao, p) * inv_det;
+    if (u < -kEdgeSlack || u > 1 + kEdgeSlack) return kInf;
+    Vec3 q = cross(ao, ab);
+    double v = dot(dir, q) * inv_det;
+    if (v < -kEdgeSlack || u + v > 1 + kEdgeSlack) return kInf;
+    double t = dot(ac, q) * inv_det;
+    return t > 0 ? t : kInf;
+}
 
 /// Leaves hold at most this many triangles: below it, testing them all beats descending.
 constexpr int64_t kLeafSize = 4;
@@ -148,6 +189,7 @@ struct TriangleBvh::Impl {
 
     explicit Impl(std::vector<std::array<Vec3, 3>> input);
     double sq_distance(const double p[3]) const;
+    double first_hit(const double origin[3], const double direction[3], double max_t) const;
 };
 
 TriangleBvh::Impl::Impl(std::vector<std::array<Vec3, 3>> input) {
@@ -240,6 +282,52 @@ double TriangleBvh::Impl::sq_distance(const double p[3]) const {
     return best;
 }
 
+double TriangleBvh::Impl::first_hit(const double origin[3], const double direction[3],
+                                    double max_t) const {
+    double inv[3];
+    for (int d = 0; d < 3; ++d) inv[d] = 1.0 / direction[d];  // ±infinity for 0
+    double best = max_t;
+    bool found = false;
+    // Depth-first, nearer box first; an entry is skipped once a hit closer than its box's
+    // entry point has been found. The depth bound of sq_distance applies.
+    struct Entry {
+        int64_t node;
+        double t;
+    };
+    std::array<Entry, 65> stack;
+    int size = 0;
+    double root_t = nodes[0].box.entry(origin, inv, best);
+    if (!std::isfinite(root_t)) return std::numeric_limits<double>::infinity();
+    stack[size++] = {0, root_t};
+    while (size > 0) {
+        Entry entry = stack[--size];
+        if (entry.t > best) continue;
+        const Node& node = nodes[entry.node];
+        if (node.count > 0) {
+            for (int64_t i = node.first; i < node.first + node.count; ++i) {
+                const auto& t = triangles[i];
+                double hit = ray_triangle(origin, direction, t[0].data(), t[1].data(), t[2].data());
+                if (hit <= best) {
+                    best = hit;
+                    found = true;
+                }
+            }
+            continue;
+        }
+        int64_t near = node.first, far = node.first + 1;
+        double near_t = nodes[near].box.entry(origin, inv, best);
+        double far_t = nodes[far].box.entry(origin, inv, best);
+        if (far_t < near_t) {
+            std::swap(near, far);
+            std::swap(near_t, far_t);
+        }
+        // entry() is +infinity for a missed box, also when max_t is.
+        if (std::isfinite(far_t) && far_t <= best) stack[size++] = {far, far_t};
+        if (std::isfinite(near_t) && near_t <= best) stack[size++] = {near, near_t};
+    }
+    return found ? best : std::numeric_limits<double>::infinity();
+}
+
 TriangleBvh::TriangleBvh(const TriangleMesh& mesh) {
     check_points(mesh.vertices, "mesh vertices", 1);
     check_faces(mesh.faces, mesh.num_vertices(), "mesh faces");
@@ -272,6 +360,37 @@ at::Tensor TriangleBvh::distances(const at::Tensor& queries) const {
     // A query costs a few microseconds: chunks of 256 amortise the scheduling.
     at::parallel_for(0, count, 256, [&](int64_t begin, int64_t end) {
         for (int64_t i = begin; i < end; ++i) out[i] = std::sqrt(impl_->sq_distance(p + 3 * i));
+    });
+    return result;
+}
+
+double TriangleBvh::first_hit(const double origin[3], const double direction[3],
+                              double max_t) const {
+    return impl_->first_hit(origin, direction, max_t);
+}
+
+at::Tensor TriangleBvh::first_hits(const at::Tensor& origins, const at::Tensor& directions,
+                                   double max_t) const {
+    for (const auto& [tensor, what] :
+         {std::pair{&origins, "ray origins"}, std::pair{&directions, "ray directions"}}) {
+        if (!tensor->defined() || tensor->dim() != 2 || tensor->size(1) != 3 ||
+            (tensor->scalar_type() != at::kFloat && tensor->scalar_type() != at::kDouble))
+            throw_input_error(what, "expected float32 or float64 [Q,3], found {}",
+                              shape_string(*tensor));
+    }
+    if (origins.size(0) != directions.size(0))
+        throw_input_error("rays", "{} origins but {} directions", origins.size(0),
+                          directions.size(0));
+    at::Tensor o = origins.to(at::kCPU, at::kDouble).contiguous();
+    at::Tensor d = directions.to(at::kCPU, at::kDouble).contiguous();
+    const int64_t count = o.size(0);
+    at::Tensor result = at::empty({count}, at::kDouble);
+    const double* op = o.data_ptr<double>();
+    const double* dp = d.data_ptr<double>();
+    double* out = result.data_ptr<double>();
+    at::parallel_for(0, count, 256, [&](int64_t begin, int64_t end) {
+        for (int64_t i = begin; i < end; ++i)
+            out[i] = impl_->first_hit(op + 3 * i, dp + 3 * i, max_t);
     });
     return result;
 }

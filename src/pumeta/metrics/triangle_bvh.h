@@ -1,4 +1,5 @@
-// A bounding-volume hierarchy over triangles for exact closest-point queries.
+// A bounding-volume hierarchy over triangles for exact closest-point queries and first-hit
+// ray casting.
 #pragma once
 
 #include <ATen/core/Tensor.h>
@@ -21,6 +22,17 @@ class TriangleBvh {
     /// Unsquared distance from each query (float32 [Q,3], Q >= 0; else InputError) to the
     /// closest point on any triangle; returns a float64 CPU tensor [Q]. Parallel over queries.
     at::Tensor distances(const at::Tensor& queries) const;
+
+    /// Distance along the ray origin + t·direction (direction need not be unit; t is then in
+    /// its units) to the first triangle it crosses with 0 < t <= max_t, either side facing (a ray
+    /// through a shared edge hits); +infinity when there is none. Degenerate triangles are never
+    /// hit.
+    double first_hit(const double origin[3], const double direction[3], double max_t) const;
+
+    /// first_hit for each ray: origins and directions float32 or float64 [Q,3] (the same Q;
+    /// else InputError); returns a float64 CPU tensor [Q]. Parallel over rays.
+    at::Tensor first_hits(const at::Tensor& origins, const at::Tensor& directions,
+                          double max_t) const;
 
   private:
     struct Impl;

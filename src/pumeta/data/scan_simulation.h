@@ -1,0 +1,109 @@
+// Simulated range scans (docs/data.md, "Simulated scans"): outdoor scenes built from triangle
+// meshes (a ground plane, walls, objects at 2–60 m) swept by a spinning multi-beam LiDAR or a
+// single-station terrestrial scanner. First-hit ray casting through a TriangleBvh, Gaussian
+// range noise and random dropouts, all seeded: the same scene, sensor and seed give the same
+// points on any thread count.
+//
+// World frame: metres, z up, the ground at z = 0, the sensor above the origin.
+#pragma once
+
+#include <ATen/core/Tensor.h>
+
+#include <cstdint>
+#include <nlohmann/json.hpp>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "pumeta/geometry/point_cloud.h"
+#include "pumeta/metrics/triangle_bvh.h"
+
+namespace pumeta {
+
+struct ScanSensor {
+    std::string name;
+    /// "spinning": beams at fixed elevations, the head turning through 360° of azimuth;
+    /// "terrestrial": rows of elevation from elevation_min_deg up to (excluding) 90°, each a
+    /// full turn of azimuth.
+    std::string kind = "spinning";
+    /// Spinning: the beams' elevation angles in degrees (positive = up).
+    std::vector<double> beam_elevations_deg;
+    /// Terrestrial: the lowest row and the step between rows, in degrees.
+    double elevation_min_deg = -60;
+    double elevation_step_deg = 0.2;
+    /// The angle between consecutive firings of a beam (spinning) or samples of a row.
+    double azimuth_step_deg = 0.2;
+    /// Height of the optical centre above the ground, metres.
+    double height = 1.8;
+    /// Returns nearer than min_range or farther than max_range (true range) are lost.
+    double min_range = 1.0;
+    double max_range = 100.0;
+    /// Standard deviation of the Gaussian range noise, metres.
+    double range_sigma = 0.025;
+    /// Probability that a return within range is lost anyway.
+    double dropout = 0.07;
+
+    nlohmann::json to_json() const;
+};
+
+/// The sensors of the simulated splits: "lidar16" (VLP-16-like: 16 beams, +15° to −15° every
+/// 2°), "lidar32" (HDL-32-like: 32 beams, +10.67° to −30.67° every 1.33°), "lidar64"
+/// (HDL-64-like: 64 beams, +2° to −24.9° in two blocks: 32 beams to −8.33° every 1/3°, 32 to
+/// −24.9° every 0.52°), each turning in 0.2° steps, 1.8 m up, 100 m range, σ = 2.5 cm, 7 %
+/// dropout; "terrestrial" (a tripod scanner 1.5 m up: rows from −60° to 90° every 0.4°, 0.4°
+/// azimuth steps, 0.5–100 m, σ = 5 mm, 1 % dropout). InputError for another name.
+ScanSensor scan_sensor(const std::string& name);
+
+/// The names scan_sensor knows.
+const std::vector<std::string>& scan_sensor_names();
+
+/// The unit ray directions of one sweep, float64 [R,3] in the world frame, firing order
+/// (azimuth-major; within one azimuth, beams or rows bottom to top).
+at::Tensor sensor_directions(const ScanSensor& sensor);
+
+struct Scan {
+    at::Tensor points;     ///< float32 [N,3]: origin + measured range · direction, metres
+    at::Tensor ranges;     ///< float64 [N]: measured (noisy) ranges
+    at::Tensor ray_index;  ///< int64 [N]: the ray of each point in sensor_directions order
+    int64_t rays = 0;      ///< rays fired
+    int64_t in_range = 0;  ///< rays whose first hit lies within [min_range, max_range]
+    int64_t dropped = 0;   ///< of those, lost to dropout
+};
+
+/// One sweep of `sensor` from `origin` (world frame) against the scene. Each ray draws its
+/// dropout and noise from (seed, ray index) alone, so the result does not depend on threads.
+Scan simulate_scan(const TriangleBvh& scene, const ScanSensor& sensor, const double origin[3],
+                   uint64_t seed);
+
+struct SceneOptions {
+    /// Objects are placed with their footprint centre at a log-uniform distance in
+    /// [min_distance, max_distance] and a uniform azimuth, yawed at random, scaled so that
+    /// their largest extent is uniform in [min_size, max_size], standing on the ground, their
+    /// footprints disjoint from each other and from the walls. An object that finds no free
+    /// place in 100 tries is left out.
+    double min_distance = 2;
+    double max_distance = 60;
+    double min_size = 0.5;
+    double max_size = 3;
+    /// Walls: boxes 0.3 m thick, 4–20 m long, 2.5–8 m high, centred 10 m to max_distance
+    /// away, roughly facing the sensor (±30°), never nearer than 5 m.
+    int64_t walls = 4;
+    /// The ground: the square [−h, h]² at z = 0.
+    double ground_half_size = 150;
+};
+
+struct ScanScene {
+    TriangleMesh mesh;  ///< ground, walls and placed objects, world frame
+    nlohmann::json
+        elements;  ///< per element: name, kind, position, size (what the manifest records)
+};
+
+/// Builds a scene from `objects` (name, mesh; y up as in the catalogues, any scale: each is
+/// rescaled) placed by `seed`. InputError for a mesh without faces.
+ScanScene build_scan_scene(const std::vector<std::pair<std::string, TriangleMesh>>& objects,
+                           uint64_t seed, const SceneOptions& options = {});
+
+/// The meshes as one (vertices concatenated, faces re-indexed).
+TriangleMesh merge_meshes(const std::vector<TriangleMesh>& meshes);
+
+}  // namespace pumeta
