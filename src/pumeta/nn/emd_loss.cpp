@@ -34,9 +34,28 @@ void check_pair(const at::Tensor& a, const at::Tensor& b, const char* what) {
 
 // Euclidean distances float64 [B,n,n] on the CPU, no gradient tracking.
 at::Tensor pairwise_distances(const at::Tensor& a, const at::Tensor& b) {
-    at::Tensor a64 = a.detach().to(at::kCPU, at::kDouble);
-    at::Tensor b64 = b.detach().to(at::kCPU, at::kDouble);
-    return (a64.unsqueeze(2) - b64.unsqueeze(1)).pow(2).sum(-1).sqrt();
+    at::Tensor a64 = a.detach().to(at::kCPU, at::kDouble).contiguous();
+    at::Tensor b64 = b.detach().to(at::kCPU, at::kDouble).contiguous();
+    const int64_t batch = a64.size(0), n = a64.size(1), m = b64.size(1);
+    // Written directly from coordinate differences: no [B,n,m,3] intermediate (300 MB at a
+    // batch of 12 PU-GAN patches) and no |a|² + |b|² − 2ab cancellation.
+    at::Tensor out = at::empty({batch, n, m}, a64.options());
+    const double* pa = a64.data_ptr<double>();
+    const double* pb = b64.data_ptr<double>();
+    double* po = out.data_ptr<double>();
+    at::parallel_for(0, batch * n, 64, [&](int64_t begin, int64_t end) {
+        for (int64_t row = begin; row < end; ++row) {
+            const double* p = pa + 3 * row;
+            const double* q = pb + 3 * m * (row / n);
+            double* o = po + m * row;
+            for (int64_t j = 0; j < m; ++j) {
+                const double dx = p[0] - q[3 * j], dy = p[1] - q[3 * j + 1],
+                             dz = p[2] - q[3 * j + 2];
+                o[j] = std::sqrt(dx * dx + dy * dy + dz * dz);
+            }
+        }
+    });
+    return out;
 }
 
 // Forward auction (Bertsekas) with ε-scaling on one n×n cost matrix (row-major), minimising

@@ -39,14 +39,13 @@ at::Tensor gather_rows(const at::Tensor& rows, const at::Tensor& index) {
     return rows.reshape({batch * m, c}).index_select(0, (index + offset).reshape(-1)).view(shape);
 }
 
-// For each seed [B,S,3], the first `count` of the points [B,M,3] closer than sqrt(sq_radius)
-// in index order, the first one repeated where fewer are found: int64 [B,S,count]. A seed is
-// a point of the cloud, so it always finds itself.
-at::Tensor ball_query(const at::Tensor& points, const at::Tensor& seeds, double sq_radius,
-                      int64_t count) {
-    const int64_t m = points.size(1);
-    at::Tensor sq = (seeds.unsqueeze(2) - points.unsqueeze(1)).pow(2).sum(-1);  // [B,S,M]
-    at::Tensor order = at::arange(m, points.options().dtype(at::kLong));
+// From the squared distances sq [B,S,M] of every seed to every point, per seed the first
+// `count` points closer than sqrt(sq_radius) in index order, the first one repeated where
+// fewer are found: int64 [B,S,count]. A seed is a point of the cloud, so it always finds
+// itself.
+at::Tensor ball_query(const at::Tensor& sq, double sq_radius, int64_t count) {
+    const int64_t m = sq.size(2);
+    at::Tensor order = at::arange(m, sq.options().dtype(at::kLong));
     at::Tensor key = at::where(sq < sq_radius, order, order + m);
     at::Tensor first = std::get<0>(key.topk(count, -1, /*largest=*/false, /*sorted=*/true));
     return at::where(first < m, first, first.narrow(-1, 0, 1));
@@ -70,11 +69,12 @@ at::Tensor uniform_loss(const at::Tensor& points, const UniformLossOptions& opti
     if (m < 2) throw_input_error(kWhat, "needs at least 2 points per cloud, found {}", m);
     const int64_t num_seeds =
         std::max<int64_t>(1, int64_t(std::floor(double(m) * options.seed_fraction + 1e-9)));
-    at::Tensor seeds;
+    at::Tensor seed_distances;  // [B,S,M], shared by every disk size
     {
         at::NoGradGuard no_grad;
         at::Tensor fixed = points.detach().contiguous();
-        seeds = gather_rows(fixed, farthest_point_sampling_batched(fixed, num_seeds));
+        at::Tensor seeds = gather_rows(fixed, farthest_point_sampling_batched(fixed, num_seeds));
+        seed_distances = (seeds.unsqueeze(2) - fixed.unsqueeze(1)).pow(2).sum(-1);
     }
     at::Tensor total;
     int64_t used = 0;
@@ -85,7 +85,7 @@ at::Tensor uniform_loss(const at::Tensor& points, const UniformLossOptions& opti
         at::Tensor members, nearest;
         {
             at::NoGradGuard no_grad;
-            members = ball_query(points.detach(), seeds, p, count);  // [B,S,count]
+            members = ball_query(seed_distances, p, count);  // [B,S,count]
             at::Tensor at_members = gather_rows(points.detach(), members);
             at::Tensor sq = (at_members.unsqueeze(3) - at_members.unsqueeze(2)).pow(2).sum(-1);
             // Slots, not points: a padding copy of the first hit is another member at 0.
