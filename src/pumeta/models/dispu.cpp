@@ -3,7 +3,6 @@
 #include <ATen/ATen.h>
 
 #include <cmath>
-#include <map>
 #include <random>
 
 #include "pumeta/core/error.h"
@@ -37,14 +36,14 @@ constexpr double kOffsetRange = 0.5;
 constexpr int64_t kRepulsionNeighbors = 4;
 constexpr double kRepulsionH = 1e-3;
 
-void apply_preset(DisPuOptions& o, const std::string& preset) {
-    o.preset = preset;
-    if (preset == "paper") {
+// Sets every width from o.preset.
+void apply_preset(DisPuOptions& o) {
+    if (o.preset == "paper") {
         o.k = 16, o.growth = 24, o.blocks = 4;
         o.expand_channels = 256, o.feature_channels = 128;
         o.regressor_channels = 256, o.regressor_bottleneck = 64;
         o.refiner_channels = 128, o.refiner_out_channels = 256, o.attention_channels = 64;
-    } else if (preset == "compact") {
+    } else if (o.preset == "compact") {
         // For 2-core training: a quarter of the paper's parameters and a third of its
         // multiply-adds (the refiner's per-edge MLP and [1,C] convolution scale with its
         // width²). A step measured ~70 % of the paper's: kNN graphs, the per-point mixing
@@ -54,12 +53,30 @@ void apply_preset(DisPuOptions& o, const std::string& preset) {
         o.regressor_channels = 128, o.regressor_bottleneck = 32;
         o.refiner_channels = 64, o.refiner_out_channels = 128, o.attention_channels = 32;
     } else {
-        throw_input_error(kContext, "unknown preset '{}' (expected paper, compact)", preset);
+        throw_input_error(kContext, "unknown preset '{}' (expected paper, compact)", o.preset);
     }
 }
 
-int64_t positive_int(const nlohmann::json& value, const std::string& key) {
-    return positive_int_field(value, key, kContext);
+template <class Self, class Visit>
+void visit_fields(Self& o, Visit&& visit) {
+    visit("preset", o.preset, field::string);
+    visit("ratio", o.ratio, field::positive_int);
+    visit("k", o.k, field::positive_int);
+    visit("growth", o.growth, field::positive_int);
+    visit("blocks", o.blocks, field::positive_int);
+    visit("expand_channels", o.expand_channels, field::positive_int);
+    visit("feature_channels", o.feature_channels, field::positive_int);
+    visit("regressor_channels", o.regressor_channels, field::positive_int);
+    visit("regressor_bottleneck", o.regressor_bottleneck, field::positive_int);
+    visit("refiner_channels", o.refiner_channels, field::positive_int);
+    visit("refiner_out_channels", o.refiner_out_channels, field::positive_int);
+    visit("attention_channels", o.attention_channels, field::positive_int);
+    visit("patch_size", o.patch_size, field::positive_int);
+    visit("downsampler", o.downsampler, field::downsampler);
+    visit("repulsion_weight", o.repulsion_weight, field::non_negative_number);
+    visit("coarse_residual", o.coarse_residual, field::boolean);
+    visit("steps_per_epoch", o.steps_per_epoch, field::positive_int);
+    visit("seed", o.seed, field::seed);
 }
 
 DenseEdgeConvShape feature_shape(const DisPuOptions& o) {
@@ -111,51 +128,10 @@ Groups group_points(const at::Tensor& xyz, int64_t k) {
 }  // namespace
 
 DisPuOptions DisPuOptions::from_json(const nlohmann::json& config) {
-    if (!config.is_object()) throw_input_error(kContext, "expected a JSON object");
     DisPuOptions options;
-    if (config.contains("preset")) {
-        if (!config["preset"].is_string())
-            throw_input_error(kContext, "'preset' must be a string, found {}",
-                              config["preset"].dump());
-        apply_preset(options, config["preset"].get<std::string>());
-    }
-    const std::map<std::string, int64_t*> widths = {
-        {"ratio", &options.ratio},
-        {"k", &options.k},
-        {"growth", &options.growth},
-        {"blocks", &options.blocks},
-        {"expand_channels", &options.expand_channels},
-        {"feature_channels", &options.feature_channels},
-        {"regressor_channels", &options.regressor_channels},
-        {"regressor_bottleneck", &options.regressor_bottleneck},
-        {"refiner_channels", &options.refiner_channels},
-        {"refiner_out_channels", &options.refiner_out_channels},
-        {"attention_channels", &options.attention_channels},
-        {"patch_size", &options.patch_size},
-        {"steps_per_epoch", &options.steps_per_epoch}};
-    for (const auto& [key, value] : config.items()) {
-        if (key == "backbone") {
-            if (value != "dispu")
-                throw_input_error(kContext, "'backbone' must be \"dispu\", found {}", value.dump());
-        } else if (key == "preset") {
-            continue;  // applied first
-        } else if (auto width = widths.find(key); width != widths.end()) {
-            *width->second = positive_int(value, key);
-        } else if (key == "downsampler") {
-            options.downsampler = downsampler_field(value, kContext);
-        } else if (key == "repulsion_weight") {
-            options.repulsion_weight = non_negative_number_field(value, key, kContext);
-        } else if (key == "coarse_residual") {
-            if (!value.is_boolean())
-                throw_input_error(kContext, "'coarse_residual' must be true or false, found {}",
-                                  value.dump());
-            options.coarse_residual = value.get<bool>();
-        } else if (key == "seed") {
-            options.seed = seed_field(value, kContext);
-        } else {
-            throw_input_error(kContext, "unknown field '{}'", key);
-        }
-    }
+    read_backbone_config(
+        config, "dispu", [&](auto&& visit) { visit_fields(options, visit); },
+        [&] { apply_preset(options); });
     if (options.patch_size < 2)
         throw_input_error(kContext, "'patch_size' must be at least 2, found {}",
                           options.patch_size);
@@ -163,25 +139,7 @@ DisPuOptions DisPuOptions::from_json(const nlohmann::json& config) {
 }
 
 nlohmann::json DisPuOptions::to_json() const {
-    return {{"backbone", "dispu"},
-            {"preset", preset},
-            {"ratio", ratio},
-            {"k", k},
-            {"growth", growth},
-            {"blocks", blocks},
-            {"expand_channels", expand_channels},
-            {"feature_channels", feature_channels},
-            {"regressor_channels", regressor_channels},
-            {"regressor_bottleneck", regressor_bottleneck},
-            {"refiner_channels", refiner_channels},
-            {"refiner_out_channels", refiner_out_channels},
-            {"attention_channels", attention_channels},
-            {"patch_size", patch_size},
-            {"downsampler", downsampler},
-            {"repulsion_weight", repulsion_weight},
-            {"coarse_residual", coarse_residual},
-            {"steps_per_epoch", steps_per_epoch},
-            {"seed", seed}};
+    return write_backbone_config("dispu", [&](auto&& visit) { visit_fields(*this, visit); });
 }
 
 DisPu::DisPu(const DisPuOptions& options) : options_(options) {

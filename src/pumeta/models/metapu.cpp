@@ -3,7 +3,6 @@
 #include <ATen/ATen.h>
 
 #include <cmath>
-#include <map>
 #include <random>
 #include <vector>
 
@@ -33,6 +32,27 @@ constexpr int64_t kRepulsionNeighbors = 4;
 constexpr double kGeneratorStd = 0.01;
 
 int64_t max_ratio(const MetaPuOptions& o) { return o.candidates * o.candidates; }
+
+template <class Self, class Visit>
+void visit_fields(Self& o, Visit&& visit) {
+    visit("ratio", o.ratio, field::positive_int);
+    visit("channels", o.channels, field::positive_int);
+    visit("stage1_blocks", o.stage1_blocks, field::positive_int);
+    visit("stage2_blocks", o.stage2_blocks, field::positive_int);
+    visit("k", o.k, field::positive_int);
+    visit("generator_hidden", o.generator_hidden, field::positive_int);
+    visit("candidates", o.candidates, field::positive_int);
+    visit("patch_size", o.patch_size, field::positive_int);
+    visit("reconstruction", o.reconstruction, field::one_of({"sinkhorn", "chamfer"}));
+    visit("blur", o.blur, field::positive_number);
+    visit("reach", o.reach, field::positive_number);
+    visit("sinkhorn_scaling", o.sinkhorn_scaling, field::positive_number);
+    visit("sinkhorn_gradient", o.sinkhorn_gradient, field::one_of({"envelope", "unrolled"}));
+    visit("scale_weights_penalty", o.scale_weights_penalty, field::non_negative_number);
+    visit("uniform_weight", o.uniform_weight, field::non_negative_number);
+    visit("repulsion_weight", o.repulsion_weight, field::non_negative_number);
+    visit("seed", o.seed, field::seed);
+}
 
 // Grid entries: 1.1 + 0.1·i for i in [0, count).
 int64_t grid_count(int64_t max_ratio) { return 10 * max_ratio - kGridFirst + 1; }
@@ -142,52 +162,8 @@ SinkhornOptions sinkhorn_options(const MetaPuOptions& o) {
 }  // namespace
 
 MetaPuOptions MetaPuOptions::from_json(const nlohmann::json& config) {
-    if (!config.is_object()) throw_input_error(kContext, "expected a JSON object");
     MetaPuOptions o;
-    const std::map<std::string, int64_t*> ints = {{"ratio", &o.ratio},
-                                                  {"channels", &o.channels},
-                                                  {"stage1_blocks", &o.stage1_blocks},
-                                                  {"stage2_blocks", &o.stage2_blocks},
-                                                  {"k", &o.k},
-                                                  {"generator_hidden", &o.generator_hidden},
-                                                  {"candidates", &o.candidates},
-                                                  {"patch_size", &o.patch_size}};
-    const std::map<std::string, double*> positive = {
-        {"blur", &o.blur}, {"reach", &o.reach}, {"sinkhorn_scaling", &o.sinkhorn_scaling}};
-    const std::map<std::string, double*> weights = {
-        {"scale_weights_penalty", &o.scale_weights_penalty},
-        {"uniform_weight", &o.uniform_weight},
-        {"repulsion_weight", &o.repulsion_weight}};
-    for (const auto& [key, value] : config.items()) {
-        if (key == "backbone") {
-            if (value != "metapu")
-                throw_input_error(kContext, "'backbone' must be \"metapu\", found {}",
-                                  value.dump());
-        } else if (auto i = ints.find(key); i != ints.end()) {
-            *i->second = positive_int_field(value, key, kContext);
-        } else if (auto p = positive.find(key); p != positive.end()) {
-            *p->second = positive_number_field(value, key, kContext);
-        } else if (auto w = weights.find(key); w != weights.end()) {
-            *w->second = non_negative_number_field(value, key, kContext);
-        } else if (key == "reconstruction") {
-            if (value != "sinkhorn" && value != "chamfer")
-                throw_input_error(kContext,
-                                  "'reconstruction' must be \"sinkhorn\" or \"chamfer\", found {}",
-                                  value.dump());
-            o.reconstruction = value.get<std::string>();
-        } else if (key == "sinkhorn_gradient") {
-            if (value != "envelope" && value != "unrolled")
-                throw_input_error(kContext,
-                                  "'sinkhorn_gradient' must be \"envelope\" or \"unrolled\", "
-                                  "found {}",
-                                  value.dump());
-            o.sinkhorn_gradient = value.get<std::string>();
-        } else if (key == "seed") {
-            o.seed = seed_field(value, kContext);
-        } else {
-            throw_input_error(kContext, "unknown field '{}'", key);
-        }
-    }
+    read_backbone_config(config, "metapu", [&](auto&& visit) { visit_fields(o, visit); });
     if (o.candidates < 2)
         throw_input_error(kContext, "'candidates' must be at least 2, found {}", o.candidates);
     if (o.ratio < 2 || o.ratio > max_ratio(o))
@@ -201,24 +177,7 @@ MetaPuOptions MetaPuOptions::from_json(const nlohmann::json& config) {
 }
 
 nlohmann::json MetaPuOptions::to_json() const {
-    return {{"backbone", "metapu"},
-            {"ratio", ratio},
-            {"channels", channels},
-            {"stage1_blocks", stage1_blocks},
-            {"stage2_blocks", stage2_blocks},
-            {"k", k},
-            {"generator_hidden", generator_hidden},
-            {"candidates", candidates},
-            {"patch_size", patch_size},
-            {"reconstruction", reconstruction},
-            {"blur", blur},
-            {"reach", reach},
-            {"sinkhorn_scaling", sinkhorn_scaling},
-            {"sinkhorn_gradient", sinkhorn_gradient},
-            {"scale_weights_penalty", scale_weights_penalty},
-            {"uniform_weight", uniform_weight},
-            {"repulsion_weight", repulsion_weight},
-            {"seed", seed}};
+    return write_backbone_config("metapu", [&](auto&& visit) { visit_fields(*this, visit); });
 }
 
 double metapu_scale_code(double stage_scale, int64_t candidates) {

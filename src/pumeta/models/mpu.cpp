@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <map>
 #include <optional>
 #include <vector>
 
@@ -37,14 +36,34 @@ constexpr double kSettledBlend = 0.6;
 constexpr double kCropsPerPatch = 5.0;
 constexpr double kOutlierFactor = 5.0;
 
-void apply_preset(MpuOptions& o, const std::string& preset) {
-    o.preset = preset;
-    if (preset == "paper") {
+// Sets every width from o.preset.
+void apply_preset(MpuOptions& o) {
+    if (o.preset == "paper") {
         o.levels = 4, o.k = 32, o.first_channels = 24, o.growth = 12, o.blocks = 4;
         o.up_channels = 128, o.head_channels = 64, o.skip_neighbors = 5;
     } else {
-        throw_input_error(kContext, "unknown preset '{}' (expected paper)", preset);
+        throw_input_error(kContext, "unknown preset '{}' (expected paper)", o.preset);
     }
+}
+
+template <class Self, class Visit>
+void visit_fields(Self& o, Visit&& visit) {
+    visit("preset", o.preset, field::string);
+    visit("levels", o.levels, field::positive_int);
+    visit("ratio", o.ratio, field::positive_int);
+    visit("k", o.k, field::positive_int);
+    visit("first_channels", o.first_channels, field::positive_int);
+    visit("growth", o.growth, field::positive_int);
+    visit("blocks", o.blocks, field::positive_int);
+    visit("up_channels", o.up_channels, field::positive_int);
+    visit("head_channels", o.head_channels, field::positive_int);
+    visit("skip_neighbors", o.skip_neighbors, field::positive_int);
+    visit("patch_size", o.patch_size, field::positive_int);
+    visit("downsampler", o.downsampler, field::downsampler);
+    visit("fidelity_weight", o.fidelity_weight, field::positive_number);
+    visit("cd_threshold", o.cd_threshold, field::positive_number);
+    visit("stage_steps", o.stage_steps, field::positive_int);
+    visit("seed", o.seed, field::seed);
 }
 
 // log2(ratio) when ratio is 2^l with 1 <= l <= levels, else 0.
@@ -83,45 +102,10 @@ uint64_t mix(uint64_t seed, int64_t step) {
 }  // namespace
 
 MpuOptions MpuOptions::from_json(const nlohmann::json& config) {
-    if (!config.is_object()) throw_input_error(kContext, "expected a JSON object");
     MpuOptions options;
-    if (config.contains("preset")) {
-        if (!config["preset"].is_string())
-            throw_input_error(kContext, "'preset' must be a string, found {}",
-                              config["preset"].dump());
-        apply_preset(options, config["preset"].get<std::string>());
-    }
-    const std::map<std::string, int64_t*> integers = {{"levels", &options.levels},
-                                                      {"ratio", &options.ratio},
-                                                      {"k", &options.k},
-                                                      {"first_channels", &options.first_channels},
-                                                      {"growth", &options.growth},
-                                                      {"blocks", &options.blocks},
-                                                      {"up_channels", &options.up_channels},
-                                                      {"head_channels", &options.head_channels},
-                                                      {"skip_neighbors", &options.skip_neighbors},
-                                                      {"patch_size", &options.patch_size},
-                                                      {"stage_steps", &options.stage_steps}};
-    for (const auto& [key, value] : config.items()) {
-        if (key == "backbone") {
-            if (value != "mpu")
-                throw_input_error(kContext, "'backbone' must be \"mpu\", found {}", value.dump());
-        } else if (key == "preset") {
-            continue;  // applied first
-        } else if (auto field = integers.find(key); field != integers.end()) {
-            *field->second = positive_int_field(value, key, kContext);
-        } else if (key == "downsampler") {
-            options.downsampler = downsampler_field(value, kContext);
-        } else if (key == "fidelity_weight") {
-            options.fidelity_weight = positive_number_field(value, key, kContext);
-        } else if (key == "cd_threshold") {
-            options.cd_threshold = positive_number_field(value, key, kContext);
-        } else if (key == "seed") {
-            options.seed = seed_field(value, kContext);
-        } else {
-            throw_input_error(kContext, "unknown field '{}'", key);
-        }
-    }
+    read_backbone_config(
+        config, "mpu", [&](auto&& visit) { visit_fields(options, visit); },
+        [&] { apply_preset(options); });
     if (options.levels > 16)
         throw_input_error(kContext, "'levels' must be at most 16, found {}", options.levels);
     if (!config.contains("ratio")) options.ratio = int64_t(1) << options.levels;
@@ -135,23 +119,7 @@ MpuOptions MpuOptions::from_json(const nlohmann::json& config) {
 }
 
 nlohmann::json MpuOptions::to_json() const {
-    return {{"backbone", "mpu"},
-            {"preset", preset},
-            {"levels", levels},
-            {"ratio", ratio},
-            {"k", k},
-            {"first_channels", first_channels},
-            {"growth", growth},
-            {"blocks", blocks},
-            {"up_channels", up_channels},
-            {"head_channels", head_channels},
-            {"skip_neighbors", skip_neighbors},
-            {"patch_size", patch_size},
-            {"downsampler", downsampler},
-            {"fidelity_weight", fidelity_weight},
-            {"cd_threshold", cd_threshold},
-            {"stage_steps", stage_steps},
-            {"seed", seed}};
+    return write_backbone_config("mpu", [&](auto&& visit) { visit_fields(*this, visit); });
 }
 
 MpuCurriculumStep mpu_curriculum(int64_t step, int64_t stage_steps, int64_t max_levels,

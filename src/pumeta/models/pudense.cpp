@@ -30,12 +30,29 @@ std::vector<int64_t> preset_channels(const std::string& preset) {
     throw_input_error(kContext, "unknown preset '{}' (expected paper, compact)", preset);
 }
 
-int64_t positive_int(const nlohmann::json& value, const std::string& key) {
-    return positive_int_field(value, key, kContext);
+// Batch-norm momentum: a number in (0, 1].
+double momentum(const nlohmann::json& value, const std::string& key, const std::string& context) {
+    const double m = field::positive_number(value, key, context);
+    if (m > 1) throw_input_error(context, "'{}' must be in (0, 1], found {}", key, value.dump());
+    return m;
 }
 
-double positive_number(const nlohmann::json& value, const std::string& key) {
-    return positive_number_field(value, key, kContext);
+template <class Self, class Visit>
+void visit_fields(Self& o, Visit&& visit) {
+    visit("ratio", o.ratio, field::positive_int);
+    visit("preset", o.preset, field::string);
+    visit("channels", o.channels, field::positive_ints(5));
+    visit("last_kernel_size", o.last_kernel_size, field::positive_int);
+    visit("resolution", o.resolution, field::positive_number);
+    visit("patch_size", o.patch_size, field::positive_int);
+    visit("downsampler", o.downsampler, field::downsampler);
+    visit("loss_scale", o.loss_scale, field::positive_number);
+    visit("bn_momentum", o.bn_momentum, momentum);
+    visit("batch_stats_at_inference", o.batch_stats_at_inference, field::boolean);
+    visit("refine", o.refine, field::boolean);
+    visit("refine_weight", o.refine_weight, field::positive_number);
+    visit("refine_range", o.refine_range, field::positive_number);
+    visit("seed", o.seed, field::seed);
 }
 
 std::string level(const char* name, int64_t index, const char* suffix = "") {
@@ -134,63 +151,10 @@ void add_block(ParamMap& params, ParamMap& buffers, const std::string& p, int64_
 }  // namespace
 
 PuDenseOptions PuDenseOptions::from_json(const nlohmann::json& config) {
-    if (!config.is_object()) throw_input_error(kContext, "expected a JSON object");
     PuDenseOptions options;
-    // The preset first: explicit channels override it whatever the key order.
-    if (config.contains("preset")) {
-        if (!config["preset"].is_string())
-            throw_input_error(kContext, "'preset' must be a string, found {}",
-                              config["preset"].dump());
-        options.preset = config["preset"].get<std::string>();
-        options.channels = preset_channels(options.preset);
-    }
-    for (const auto& [key, value] : config.items()) {
-        if (key == "backbone") {
-            if (value != "pudense")
-                throw_input_error(kContext, "'backbone' must be \"pudense\", found {}",
-                                  value.dump());
-        } else if (key == "preset") {
-            continue;
-        } else if (key == "ratio") {
-            options.ratio = positive_int(value, key);
-        } else if (key == "channels") {
-            if (!value.is_array() || value.size() != 5)
-                throw_input_error(kContext, "'channels' must be an array of 5 integers, found {}",
-                                  value.dump());
-            options.channels.clear();
-            for (const auto& c : value) options.channels.push_back(positive_int(c, key));
-        } else if (key == "last_kernel_size") {
-            options.last_kernel_size = positive_int(value, key);
-        } else if (key == "resolution") {
-            options.resolution = positive_number(value, key);
-        } else if (key == "patch_size") {
-            options.patch_size = positive_int(value, key);
-        } else if (key == "downsampler") {
-            options.downsampler = downsampler_field(value, kContext);
-        } else if (key == "loss_scale") {
-            options.loss_scale = positive_number(value, key);
-        } else if (key == "bn_momentum") {
-            options.bn_momentum = positive_number(value, key);
-            if (options.bn_momentum > 1)
-                throw_input_error(kContext, "'bn_momentum' must be in (0, 1], found {}",
-                                  value.dump());
-        } else if (key == "batch_stats_at_inference") {
-            if (!value.is_boolean())
-                throw_input_error(kContext, "'batch_stats_at_inference' must be a boolean");
-            options.batch_stats_at_inference = value.get<bool>();
-        } else if (key == "refine") {
-            if (!value.is_boolean()) throw_input_error(kContext, "'refine' must be a boolean");
-            options.refine = value.get<bool>();
-        } else if (key == "refine_weight") {
-            options.refine_weight = positive_number(value, key);
-        } else if (key == "refine_range") {
-            options.refine_range = positive_number(value, key);
-        } else if (key == "seed") {
-            options.seed = seed_field(value, kContext);
-        } else {
-            throw_input_error(kContext, "unknown field '{}'", key);
-        }
-    }
+    read_backbone_config(
+        config, "pudense", [&](auto&& visit) { visit_fields(options, visit); },
+        [&] { options.channels = preset_channels(options.preset); });
     for (int64_t c : options.channels)
         if (c % 4 != 0) throw_input_error(kContext, "channels must be multiples of 4, found {}", c);
     if (options.channels[0] != options.channels[1])
@@ -203,21 +167,7 @@ PuDenseOptions PuDenseOptions::from_json(const nlohmann::json& config) {
 }
 
 nlohmann::json PuDenseOptions::to_json() const {
-    return {{"backbone", "pudense"},
-            {"ratio", ratio},
-            {"preset", preset},
-            {"channels", channels},
-            {"last_kernel_size", last_kernel_size},
-            {"resolution", resolution},
-            {"patch_size", patch_size},
-            {"downsampler", downsampler},
-            {"loss_scale", loss_scale},
-            {"bn_momentum", bn_momentum},
-            {"batch_stats_at_inference", batch_stats_at_inference},
-            {"refine", refine},
-            {"refine_weight", refine_weight},
-            {"refine_range", refine_range},
-            {"seed", seed}};
+    return write_backbone_config("pudense", [&](auto&& visit) { visit_fields(*this, visit); });
 }
 
 PuDense::PuDense(const PuDenseOptions& options) : options_(options) {

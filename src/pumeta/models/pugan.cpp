@@ -3,7 +3,6 @@
 #include <ATen/ATen.h>
 
 #include <cmath>
-#include <map>
 #include <random>
 
 #include "pumeta/core/error.h"
@@ -33,21 +32,47 @@ constexpr double kRepulsionH = 1e-3;
 constexpr const char* kLastLayer = "fc2.";
 constexpr const char* kGamma = ".gamma";
 
-void apply_preset(PuGanOptions& o, const std::string& preset) {
-    o.preset = preset;
-    if (preset == "paper") {
+// Sets every width from o.preset.
+void apply_preset(PuGanOptions& o) {
+    if (o.preset == "paper") {
         o.k = 16, o.first = 24, o.growth = 24, o.blocks = 4;
         o.feature_channels = 128, o.up_channels = 256, o.down_channels = 256;
         o.head_channels = 64, o.discriminator_channels = 32;
-    } else if (preset == "compact") {
+    } else if (o.preset == "compact") {
         // For quick 2-core runs: half of every width (a quarter of the parameters); the
         // attention over r'N points, most of the cost, shrinks with the feature width.
         o.k = 16, o.first = 12, o.growth = 12, o.blocks = 4;
         o.feature_channels = 64, o.up_channels = 128, o.down_channels = 128;
         o.head_channels = 32, o.discriminator_channels = 16;
     } else {
-        throw_input_error(kContext, "unknown preset '{}' (expected paper, compact)", preset);
+        throw_input_error(kContext, "unknown preset '{}' (expected paper, compact)", o.preset);
     }
+}
+
+template <class Self, class Visit>
+void visit_fields(Self& o, Visit&& visit) {
+    visit("preset", o.preset, field::string);
+    visit("ratio", o.ratio, field::positive_int);
+    visit("extra_copies", o.extra_copies, field::int_range(0, 64));
+    visit("k", o.k, field::positive_int);
+    visit("first", o.first, field::positive_int);
+    visit("growth", o.growth, field::positive_int);
+    visit("blocks", o.blocks, field::positive_int);
+    visit("feature_channels", o.feature_channels, field::positive_int);
+    visit("up_channels", o.up_channels, field::positive_int);
+    visit("down_channels", o.down_channels, field::positive_int);
+    visit("head_channels", o.head_channels, field::positive_int);
+    visit("discriminator_channels", o.discriminator_channels, field::positive_int);
+    visit("patch_size", o.patch_size, field::positive_int);
+    visit("downsampler", o.downsampler, field::downsampler);
+    visit("emd_weight", o.emd_weight, field::non_negative_number);
+    visit("uniform_weight", o.uniform_weight, field::non_negative_number);
+    visit("repulsion_weight", o.repulsion_weight, field::non_negative_number);
+    visit("regularization", o.regularization, field::non_negative_number);
+    visit("adversarial_weight", o.adversarial_weight, field::non_negative_number);
+    visit("discriminator_lr", o.discriminator_lr, field::positive_number);
+    visit("emd_matching", o.emd_matching, field::one_of({"auction", "approximate"}));
+    visit("seed", o.seed, field::seed);
 }
 
 DenseEdgeConvShape feature_shape(const PuGanOptions& o) {
@@ -89,65 +114,10 @@ void add_up_block(ParamMap& params, const std::string& prefix, const PuGanOption
 }  // namespace
 
 PuGanOptions PuGanOptions::from_json(const nlohmann::json& config) {
-    if (!config.is_object()) throw_input_error(kContext, "expected a JSON object");
     PuGanOptions options;
-    if (config.contains("preset")) {
-        if (!config["preset"].is_string())
-            throw_input_error(kContext, "'preset' must be a string, found {}",
-                              config["preset"].dump());
-        apply_preset(options, config["preset"].get<std::string>());
-    }
-    const std::map<std::string, int64_t*> sizes = {
-        {"ratio", &options.ratio},
-        {"k", &options.k},
-        {"first", &options.first},
-        {"growth", &options.growth},
-        {"blocks", &options.blocks},
-        {"feature_channels", &options.feature_channels},
-        {"up_channels", &options.up_channels},
-        {"down_channels", &options.down_channels},
-        {"head_channels", &options.head_channels},
-        {"discriminator_channels", &options.discriminator_channels},
-        {"patch_size", &options.patch_size}};
-    const std::map<std::string, double*> weights = {
-        {"emd_weight", &options.emd_weight},
-        {"uniform_weight", &options.uniform_weight},
-        {"repulsion_weight", &options.repulsion_weight},
-        {"regularization", &options.regularization},
-        {"adversarial_weight", &options.adversarial_weight}};
-    for (const auto& [key, value] : config.items()) {
-        if (key == "backbone") {
-            if (value != "pugan")
-                throw_input_error(kContext, "'backbone' must be \"pugan\", found {}", value.dump());
-        } else if (key == "preset") {
-            continue;  // applied first
-        } else if (auto size = sizes.find(key); size != sizes.end()) {
-            *size->second = positive_int_field(value, key, kContext);
-        } else if (auto weight = weights.find(key); weight != weights.end()) {
-            *weight->second = non_negative_number_field(value, key, kContext);
-        } else if (key == "extra_copies") {
-            if (!value.is_number_integer() || value.get<int64_t>() < 0 || value.get<int64_t>() > 64)
-                throw_input_error(kContext,
-                                  "'extra_copies' must be an integer from 0 to 64, "
-                                  "found {}",
-                                  value.dump());
-            options.extra_copies = value.get<int64_t>();
-        } else if (key == "discriminator_lr") {
-            options.discriminator_lr = positive_number_field(value, key, kContext);
-        } else if (key == "emd_matching") {
-            if (value != "auction" && value != "approximate")
-                throw_input_error(kContext,
-                                  "'emd_matching' must be \"auction\" or \"approximate\", found {}",
-                                  value.dump());
-            options.emd_matching = value.get<std::string>();
-        } else if (key == "downsampler") {
-            options.downsampler = downsampler_field(value, kContext);
-        } else if (key == "seed") {
-            options.seed = seed_field(value, kContext);
-        } else {
-            throw_input_error(kContext, "unknown field '{}'", key);
-        }
-    }
+    read_backbone_config(
+        config, "pugan", [&](auto&& visit) { visit_fields(options, visit); },
+        [&] { apply_preset(options); });
     if (options.patch_size < 2)
         throw_input_error(kContext, "'patch_size' must be at least 2, found {}",
                           options.patch_size);
@@ -158,29 +128,7 @@ PuGanOptions PuGanOptions::from_json(const nlohmann::json& config) {
 }
 
 nlohmann::json PuGanOptions::to_json() const {
-    return {{"backbone", "pugan"},
-            {"preset", preset},
-            {"ratio", ratio},
-            {"extra_copies", extra_copies},
-            {"k", k},
-            {"first", first},
-            {"growth", growth},
-            {"blocks", blocks},
-            {"feature_channels", feature_channels},
-            {"up_channels", up_channels},
-            {"down_channels", down_channels},
-            {"head_channels", head_channels},
-            {"discriminator_channels", discriminator_channels},
-            {"patch_size", patch_size},
-            {"downsampler", downsampler},
-            {"emd_weight", emd_weight},
-            {"uniform_weight", uniform_weight},
-            {"repulsion_weight", repulsion_weight},
-            {"regularization", regularization},
-            {"adversarial_weight", adversarial_weight},
-            {"discriminator_lr", discriminator_lr},
-            {"emd_matching", emd_matching},
-            {"seed", seed}};
+    return write_backbone_config("pugan", [&](auto&& visit) { visit_fields(*this, visit); });
 }
 
 PuGan::PuGan(const PuGanOptions& options) : options_(options) {

@@ -21,8 +21,19 @@ namespace {
 
 constexpr const char* kContext = "pugcn config";
 
-int64_t positive_int(const nlohmann::json& value, const std::string& key) {
-    return positive_int_field(value, key, kContext);
+template <class Self, class Visit>
+void visit_fields(Self& o, Visit&& visit) {
+    visit("ratio", o.ratio, field::positive_int);
+    visit("channels", o.channels, field::positive_int);
+    visit("blocks", o.blocks, field::positive_int);
+    visit("k", o.k, field::positive_int);
+    visit("dilation", o.dilation, field::positive_int);
+    visit("upsample_channels", o.upsample_channels, field::positive_int);
+    visit("reconstruction_channels", o.reconstruction_channels, field::positive_int);
+    visit("patch_size", o.patch_size, field::positive_int);
+    visit("downsampler", o.downsampler, field::downsampler);
+    visit("loss_scale", o.loss_scale, field::positive_number);
+    visit("seed", o.seed, field::seed);
 }
 
 std::string block_prefix(int64_t block) { return "block" + std::to_string(block); }
@@ -30,38 +41,8 @@ std::string block_prefix(int64_t block) { return "block" + std::to_string(block)
 }  // namespace
 
 PuGcnOptions PuGcnOptions::from_json(const nlohmann::json& config) {
-    if (!config.is_object()) throw_input_error(kContext, "expected a JSON object");
     PuGcnOptions options;
-    for (const auto& [key, value] : config.items()) {
-        if (key == "backbone") {
-            if (value != "pugcn")
-                throw_input_error(kContext, "'backbone' must be \"pugcn\", found {}", value.dump());
-        } else if (key == "ratio") {
-            options.ratio = positive_int(value, key);
-        } else if (key == "channels") {
-            options.channels = positive_int(value, key);
-        } else if (key == "blocks") {
-            options.blocks = positive_int(value, key);
-        } else if (key == "k") {
-            options.k = positive_int(value, key);
-        } else if (key == "dilation") {
-            options.dilation = positive_int(value, key);
-        } else if (key == "upsample_channels") {
-            options.upsample_channels = positive_int(value, key);
-        } else if (key == "reconstruction_channels") {
-            options.reconstruction_channels = positive_int(value, key);
-        } else if (key == "patch_size") {
-            options.patch_size = positive_int(value, key);
-        } else if (key == "downsampler") {
-            options.downsampler = downsampler_field(value, kContext);
-        } else if (key == "loss_scale") {
-            options.loss_scale = positive_number_field(value, key, kContext);
-        } else if (key == "seed") {
-            options.seed = seed_field(value, kContext);
-        } else {
-            throw_input_error(kContext, "unknown field '{}'", key);
-        }
-    }
+    read_backbone_config(config, "pugcn", [&](auto&& visit) { visit_fields(options, visit); });
     if (options.k * options.dilation >= options.patch_size)
         throw_input_error(kContext, "k·dilation = {} needs patches of more points than {}",
                           options.k * options.dilation, options.patch_size);
@@ -69,18 +50,7 @@ PuGcnOptions PuGcnOptions::from_json(const nlohmann::json& config) {
 }
 
 nlohmann::json PuGcnOptions::to_json() const {
-    return {{"backbone", "pugcn"},
-            {"ratio", ratio},
-            {"channels", channels},
-            {"blocks", blocks},
-            {"k", k},
-            {"dilation", dilation},
-            {"upsample_channels", upsample_channels},
-            {"reconstruction_channels", reconstruction_channels},
-            {"patch_size", patch_size},
-            {"downsampler", downsampler},
-            {"loss_scale", loss_scale},
-            {"seed", seed}};
+    return write_backbone_config("pugcn", [&](auto&& visit) { visit_fields(*this, visit); });
 }
 
 PuGcn::PuGcn(const PuGcnOptions& options) : options_(options) {
