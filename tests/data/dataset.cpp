@@ -13,7 +13,9 @@
 #include "pumeta/data/patch_set.h"
 #include "pumeta/data/shapes.h"
 #include "pumeta/geometry/io.h"
+#include "pumeta/geometry/knn.h"
 #include "pumeta/geometry/sampling.h"
+#include "pumeta/metrics/triangle_bvh.h"
 #include "support/test_util.h"
 
 namespace pumeta {
@@ -225,6 +227,102 @@ TEST_F(DatasetTest, PartialBuildOfSomeSplitsWritesTheSameFilesAsTheFullBuild) {
                   test::read_file(
                       (dir_->path() / "out/cases/test-scans/x4/cgal_bunny00" / file).string()))
             << file;
+}
+
+DatasetConfig with_scans(DatasetConfig config) {
+    config.scan_scenes = 1;
+    config.scan_objects = 4;
+    config.scan_splits = {{"test-lidar16", "lidar16", "test"}, {"val-lidar", "lidar16", "train"}};
+    return config;
+}
+
+// The tiny dataset again, now with a simulated test split and a validation split.
+TEST_F(DatasetTest, SimulatedScanSplitsFollowTheRealScanProtocolWithTheirSceneMesh) {
+    fs::path out = dir_->path() / "scans";
+    nlohmann::json manifest = make_dataset(with_scans(tiny_config(dir_->file("raw"))), out);
+    ASSERT_TRUE(manifest.contains("scans"));
+    EXPECT_EQ(manifest["counts"]["test-lidar16"]["x4"]["cases"], 1);
+    EXPECT_EQ(manifest["counts"]["val-lidar"]["x4"]["cases"], 1);
+    EXPECT_EQ(manifest["config"]["scan_splits"].size(), 2u);
+
+    fs::path cases = out / "cases" / "test-lidar16" / "x4";
+    nlohmann::json index = nlohmann::json::parse(std::ifstream(cases / "cases.json"));
+    ASSERT_EQ(index["cases"].size(), 1u);
+    const nlohmann::json& entry = index["cases"][0];
+    EXPECT_EQ(entry["gt_alt"], nullptr);
+    fs::path dir = cases / entry["name"].get<std::string>();
+    at::Tensor input = read_point_cloud((dir / "input.ply").string()).points;
+    at::Tensor gt = read_point_cloud((dir / "gt.ply").string()).points;
+    EXPECT_EQ(gt.size(0), 4 * input.size(0));
+    EXPECT_EQ(gt.size(0), entry["n_gt"].get<int64_t>());
+    const nlohmann::json& scene = manifest["scans"]["test-lidar16"]["scenes"][0];
+    // GT = the whole sweep but the < r points a 1/r subset leaves over.
+    EXPECT_LT(scene["points"].get<int64_t>() - gt.size(0), 4);
+    EXPECT_EQ(scene["rays"], 16 * 1800);
+    // The input is a subset of the GT (distance 0 to it), both in the unit sphere.
+    EXPECT_EQ(knn(gt, input, 1).sq_distances.max().item<float>(), 0.0f);
+    EXPECT_LE(gt.norm(2, 1).max().item<float>(), 1.0f + 1e-5f);
+    // The scene mesh is in the same frame: returns lie on it up to the range noise.
+    TriangleMesh mesh = read_mesh((dir / entry["mesh"].get<std::string>()).string());
+    const double sigma = 0.025 / entry["metres_per_unit"].get<double>();
+    at::Tensor to_mesh = TriangleBvh(mesh).distances(gt);
+    EXPECT_LT(to_mesh.median().item<double>(), 1.5 * sigma);
+    EXPECT_LT(to_mesh.max().item<double>(), 6 * sigma);
+
+    // Objects: test scenes from the test sets and fresh shapes, the validation scene from
+    // the training split only.
+    std::set<std::string> train_ids, test_ids;
+    for (auto& [split, models] : manifest["splits"].items())
+        for (const auto& m : models)
+            (split == "train" ? train_ids : test_ids).insert(m["id"].get<std::string>());
+    auto objects_of = [&](const std::string& split) {
+        std::vector<std::string> names;
+        for (const auto& e : manifest["scans"][split]["scenes"][0]["elements"])
+            if (e["kind"] == "object") names.push_back(e["name"].get<std::string>());
+        return names;
+    };
+    ASSERT_FALSE(objects_of("val-lidar").empty());
+    for (const std::string& name : objects_of("val-lidar")) EXPECT_EQ(train_ids.count(name), 1u);
+    for (const std::string& name : objects_of("test-lidar16")) {
+        EXPECT_EQ(train_ids.count(name), 0u) << name;
+        EXPECT_TRUE(test_ids.count(name) == 1 || name.rfind("generated/", 0) == 0) << name;
+    }
+
+    // The other splits are unchanged by the scans, byte for byte.
+    for (const char* file : {"cases/test-scans/x4/cgal_bunny00/gt.ply", "train-x4.tensors",
+                             "cases/test-aerial/x4/cases.json"})
+        EXPECT_EQ(test::read_file((out / file).string()),
+                  test::read_file((dir_->path() / "out" / file).string()))
+            << file;
+    // Without scans, the manifest's config has no scan fields.
+    EXPECT_FALSE((*manifest_)["config"].contains("scan_splits"));
+
+    // A build of the scan split alone writes the same files.
+    DatasetConfig only = with_scans(tiny_config(dir_->file("raw")));
+    only.splits = {"val-lidar"};
+    fs::path partial = dir_->path() / "scans-partial";
+    nlohmann::json partial_manifest = make_dataset(only, partial);
+    EXPECT_FALSE(partial_manifest["scans"].contains("test-lidar16"));
+    EXPECT_FALSE(fs::exists(partial / "train-x4.tensors"));
+    for (const char* file :
+         {"cases/val-lidar/x4/cases.json", "cases/val-lidar/x4/scene00/gt.ply",
+          "cases/val-lidar/x4/scene00/input.ply", "cases/val-lidar/meshes/scene00.ply"})
+        EXPECT_EQ(test::read_file((partial / file).string()),
+                  test::read_file((out / file).string()))
+            << file;
+}
+
+TEST(DatasetConfig, RejectsBadScanSplits) {
+    auto config_with = [](nlohmann::json scan) {
+        return DatasetConfig::from_json({{"scan_splits", nlohmann::json::array({scan})}});
+    };
+    EXPECT_NO_THROW(config_with({{"split", "test-lidar64"}, {"sensor", "lidar64"}}));
+    EXPECT_THROW(config_with({{"split", "test-x"}, {"sensor", "lidar8"}}), InputError);
+    EXPECT_THROW(config_with({{"split", "test-x"}, {"sensor", "lidar16"}, {"meshes", "val"}}),
+                 InputError);
+    EXPECT_THROW(config_with({{"split", "train"}, {"sensor", "lidar16"}}), InputError);
+    nlohmann::json twice = {{"split", "test-x"}, {"sensor", "lidar16"}};
+    EXPECT_THROW(DatasetConfig::from_json({{"scan_splits", {twice, twice}}}), InputError);
 }
 
 TEST_F(DatasetTest, InfoDescribesAPatchSet) {

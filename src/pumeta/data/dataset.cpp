@@ -10,6 +10,8 @@
 #include <fstream>
 #include <map>
 #include <mutex>
+#include <random>
+#include <set>
 #include <thread>
 
 #include "pumeta/core/error.h"
@@ -19,6 +21,7 @@
 #include "pumeta/core/sha256.h"
 #include "pumeta/data/layout.h"
 #include "pumeta/data/patch_set.h"
+#include "pumeta/data/scan_simulation.h"
 #include "pumeta/data/shapes.h"
 #include "pumeta/data/sources.h"
 #include "pumeta/geometry/io.h"
@@ -26,6 +29,7 @@
 #include "pumeta/geometry/noise.h"
 #include "pumeta/geometry/normalize.h"
 #include "pumeta/geometry/sampling.h"
+#include "pumeta/metrics/triangle_bvh.h"
 
 namespace pumeta {
 
@@ -49,13 +53,51 @@ void visit_fields(Self& c, Visit&& visit) {
     visit("absolute_noise", c.absolute_noise);
     visit("max_models_per_split", c.max_models_per_split);
     visit("splits", c.splits);
+    visit("scan_splits", c.scan_splits);
+    visit("scan_scenes", c.scan_scenes);
+    visit("scan_objects", c.scan_objects);
+    visit("scan_seed", c.scan_seed);
 }
 
+template <class Self, class Visit>
+void visit_scan_split_fields(Self& c, Visit&& visit) {
+    visit("split", c.split);
+    visit("sensor", c.sensor);
+    visit("meshes", c.meshes);
+}
+
+constexpr const char* kScanFields[] = {"scan_splits", "scan_scenes", "scan_objects", "scan_seed"};
+
 }  // namespace
+
+ScanSplitConfig ScanSplitConfig::from_json(const nlohmann::json& j) {
+    ScanSplitConfig c;
+    read_fields(j, "scan split", [&](auto&& visit) { visit_scan_split_fields(c, visit); });
+    scan_sensor(c.sensor);  // InputError for an unknown sensor
+    if (c.meshes != "test" && c.meshes != "train")
+        throw_input_error("scan split", "'meshes' must be \"test\" or \"train\", found \"{}\"",
+                          c.meshes);
+    for (const char* taken : {"train", "val", layout::kTestIndist, layout::kTestScans,
+                              layout::kTestAerial, layout::kTestHumans})
+        if (c.split == taken || c.split.empty() || c.split.find('/') != std::string::npos)
+            throw_input_error("scan split", "'split' \"{}\" is empty, has a '/' or is taken",
+                              c.split);
+    return c;
+}
+
+nlohmann::json ScanSplitConfig::to_json() const {
+    return write_fields([&](auto&& visit) { visit_scan_split_fields(*this, visit); });
+}
 
 DatasetConfig DatasetConfig::from_json(const nlohmann::json& j) {
     DatasetConfig c;
     read_fields(j, "dataset config", [&](auto&& visit) { visit_fields(c, visit); });
+    if (c.scan_scenes < 0 || c.scan_objects < 0)
+        throw_input_error("dataset config", "scan_scenes and scan_objects must be >= 0");
+    std::set<std::string> scan_names;
+    for (const ScanSplitConfig& scan : c.scan_splits)
+        if (!scan_names.insert(scan.split).second)
+            throw_input_error("dataset config", "scan split '{}' is listed twice", scan.split);
     for (int64_t r : c.ratios)
         if (r < 2) throw_input_error("dataset config", "ratio {} must be at least 2", r);
     if (c.input_points < c.patch_points)
@@ -65,7 +107,11 @@ DatasetConfig DatasetConfig::from_json(const nlohmann::json& j) {
 }
 
 nlohmann::json DatasetConfig::to_json() const {
-    return write_fields([&](auto&& visit) { visit_fields(*this, visit); });
+    nlohmann::json j = write_fields([&](auto&& visit) { visit_fields(*this, visit); });
+    // Without simulated scans the manifest's config reads as before they existed.
+    if (scan_splits.empty())
+        for (const char* field : kScanFields) j.erase(field);
+    return j;
 }
 
 namespace {
@@ -135,6 +181,166 @@ void for_each_parallel(int64_t n, const std::string& label, Work work) {
     progress.finish();
 }
 
+using CaseLists = std::map<std::string, std::map<int64_t, nlohmann::json>>;  // set -> ratio
+
+/// Simulates the scan splits of config.scan_splits (those in config.splits when it is not
+/// empty) and writes their cases, adding them to `cases`. items: every model of the raw data
+/// and the generator, whatever config.splits says. Returns the manifest's "scans".
+nlohmann::json make_scan_splits(const DatasetConfig& config, const std::vector<Item>& items,
+                                const std::string& out_dir, CaseLists& cases) {
+    std::vector<const ScanSplitConfig*> scans;
+    for (const ScanSplitConfig& scan : config.scan_splits)
+        if (config.splits.empty() || std::find(config.splits.begin(), config.splits.end(),
+                                               scan.split) != config.splits.end())
+            scans.push_back(&scan);
+    nlohmann::json result = nlohmann::json::object();
+    if (scans.empty() || config.scan_scenes == 0) return result;
+
+    // The meshes each kind of scene may use, by id (independent of listing order).
+    std::map<std::string, std::vector<const Item*>> pools = {{"test", {}}, {"train", {}}};
+    for (const Item& item : items) {
+        if (item.model.source == "cgal-aerial") continue;  // points, no mesh
+        if (item.split == "train")
+            pools["train"].push_back(&item);
+        else if (item.split == layout::kTestIndist || item.split == layout::kTestScans ||
+                 item.split == layout::kTestHumans)
+            pools["test"].push_back(&item);
+    }
+    for (auto& [kind, pool] : pools)
+        std::sort(pool.begin(), pool.end(),
+                  [](const Item* a, const Item* b) { return a->model.id < b->model.id; });
+
+    struct Job {
+        const ScanSplitConfig* scan;
+        std::string name, id;
+        nlohmann::json record;
+        std::string error;
+    };
+    std::vector<Job> jobs;
+    for (const ScanSplitConfig* scan : scans)
+        for (int64_t s = 0; s < config.scan_scenes; ++s) {
+            std::string name = fmt::format("scene{:02d}", s);
+            jobs.push_back({scan, name, scan->split + "/" + name, nullptr, ""});
+        }
+    std::mutex cases_mutex;
+    for_each_parallel(static_cast<int64_t>(jobs.size()), "scans", [&](int64_t j) {
+        Job& job = jobs[j];
+        const ScanSplitConfig& scan = *job.scan;
+        const std::string& id = job.id;
+        try {
+            const ScanSensor sensor = scan_sensor(scan.sensor);
+            const std::vector<const Item*>& pool = pools.at(scan.meshes);
+            std::mt19937_64 rng(derive_seed(config.scan_seed, id + "/objects"));
+            std::vector<std::pair<std::string, TriangleMesh>> objects;
+            for (int64_t o = 0; o < config.scan_objects; ++o) {
+                // Test scenes: every second object a shape generated for this scene alone.
+                if (pool.empty() || (scan.meshes == "test" && o % 2 == 1)) {
+                    ShapeOptions upright;
+                    upright.rotate = false;
+                    const uint64_t seed =
+                        derive_seed(config.scan_seed, id + "/shape/" + std::to_string(o));
+                    objects.push_back(
+                        {fmt::format("generated/{:016x}", seed), generate_shape(seed, upright)});
+                    continue;
+                }
+                // A mesh of the pool; one that does not load is replaced by another pick.
+                for (int attempt = 0; attempt < 10; ++attempt) {
+                    const Item& item = *pool[rng() % pool.size()];
+                    try {
+                        objects.push_back({item.model.id, normalize_to_unit_sphere(
+                                                              load_item_mesh(item, config.raw_dir),
+                                                              item.model.id)});
+                        break;
+                    } catch (const std::exception&) {
+                    }
+                }
+            }
+            ScanScene scene =
+                build_scan_scene(objects, derive_seed(config.scan_seed, id + "/layout"));
+            const double origin[3] = {0, 0, sensor.height};
+            Scan sweep = simulate_scan(TriangleBvh(scene.mesh), sensor, origin,
+                                       derive_seed(config.scan_seed, id + "/sweep"));
+            const int64_t max_ratio = *std::max_element(config.ratios.begin(), config.ratios.end());
+            if (sweep.points.size(0) < max_ratio)
+                throw_input_error(id, "only {} returns", sweep.points.size(0));
+            // As the real scans: GT = every return, input = a random 1/r subset, in the frame
+            // that maps the sweep to the unit sphere (the scene mesh too, for P2F).
+            Normalization frame = unit_sphere_normalization(sweep.points);
+            at::Tensor pts = frame.apply(sweep.points);
+            fs::path mesh_file = layout::case_mesh_path(out_dir, scan.split, job.name);
+            fs::create_directories(mesh_file.parent_path());
+            write_mesh(mesh_file.string(), {frame.apply(scene.mesh.vertices), scene.mesh.faces});
+            const double metres_per_unit = 1.0 / frame.scale;
+            for (int64_t r : config.ratios) {
+                const std::string rs = std::to_string(r);
+                const int64_t n_in = pts.size(0) / r;
+                fs::path dir = layout::cases_dir(out_dir, scan.split, r) / job.name;
+                fs::create_directories(dir);
+                at::Tensor gt =
+                    pts.index_select(0, random_subset(pts.size(0), n_in * r,
+                                                      derive_seed(config.seed, id + "/gt/" + rs)));
+                at::Tensor input = gt.index_select(
+                    0, random_subset(gt.size(0), n_in, derive_seed(config.seed, id + "/in/" + rs)));
+                write_point_cloud((dir / layout::kInputFile).string(), {input});
+                write_point_cloud((dir / layout::kGtFile).string(), {gt});
+                nlohmann::json noisy = nlohmann::json::object();
+                for (double p : config.relative_noise) {
+                    std::string file = "input_rel" + noise_tag(p) + ".ply";
+                    write_point_cloud(
+                        (dir / file).string(),
+                        {add_relative_noise(input, p, derive_seed(config.seed, id + file))});
+                    noisy["rel" + noise_tag(p)] = file;
+                }
+                for (double sigma : config.absolute_noise) {
+                    std::string file = "input_abs" + noise_tag(sigma) + ".ply";
+                    write_point_cloud(
+                        (dir / file).string(),
+                        {add_absolute_noise(input, sigma, derive_seed(config.seed, id + file))});
+                    noisy["abs" + noise_tag(sigma)] = file;
+                }
+                nlohmann::json entry = {{"name", job.name},
+                                        {"id", id},
+                                        {"n_in", n_in},
+                                        {"n_gt", gt.size(0)},
+                                        {"mesh", layout::case_mesh_entry(job.name)},
+                                        {"gt_alt", nullptr},
+                                        {"noisy_inputs", noisy},
+                                        {"sensor", scan.sensor},
+                                        {"metres_per_unit", metres_per_unit}};
+                std::lock_guard<std::mutex> lock(cases_mutex);
+                cases[scan.split][r].push_back(entry);
+            }
+            job.record = {{"id", id},
+                          {"name", job.name},
+                          {"rays", sweep.rays},
+                          {"in_range", sweep.in_range},
+                          {"dropped", sweep.dropped},
+                          {"points", sweep.points.size(0)},
+                          {"triangles", scene.mesh.num_faces()},
+                          {"metres_per_unit", metres_per_unit},
+                          {"elements", scene.elements}};
+        } catch (const std::exception& e) {
+            std::string message = e.what();
+            job.error = message.substr(0, message.find('\n'));
+        }
+    });
+    for (const ScanSplitConfig* scan : scans)
+        result[scan->split] = {{"sensor", scan_sensor(scan->sensor).to_json()},
+                               {"meshes", scan->meshes},
+                               {"scenes", nlohmann::json::array()},
+                               {"skipped", nlohmann::json::array()}};
+    for (const Job& job : jobs) {
+        nlohmann::json& split = result[job.scan->split];
+        if (job.error.empty()) {
+            split["scenes"].push_back(job.record);
+        } else {
+            spdlog::warn("dataset: skipping {}: {}", job.id, job.error);
+            split["skipped"].push_back({{"id", job.id}, {"reason", job.error}});
+        }
+    }
+    return result;
+}
+
 }  // namespace
 
 nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_dir) {
@@ -175,6 +381,7 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
         items.push_back(item);
     }
 
+    const std::vector<Item> all_items = items;  // what simulated scenes choose from
     if (!config.splits.empty())
         items.erase(std::remove_if(items.begin(), items.end(),
                                    [&](const Item& item) {
@@ -194,7 +401,7 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
     for (size_t i = 0; i < items.size(); ++i) order.push_back(static_cast<int64_t>(i));
 
     std::mutex cases_mutex;
-    std::map<std::string, std::map<int64_t, nlohmann::json>> cases;  // set -> ratio -> list
+    CaseLists cases;
 
     for_each_parallel(static_cast<int64_t>(items.size()), "dataset", [&](int64_t i) {
         const Item& item = items[i];
@@ -309,6 +516,8 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
         }
     });
 
+    nlohmann::json scans = make_scan_splits(config, all_items, out_dir, cases);
+
     nlohmann::json manifest;
     manifest["config"] = config.to_json();
     manifest["skipped"] = nlohmann::json::array();
@@ -338,6 +547,7 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
         splits[item.split].push_back(entry);
     }
     manifest["splits"] = splits;
+    if (!scans.empty()) manifest["scans"] = scans;
     check_split_integrity(manifest);
 
     nlohmann::json counts = nlohmann::json::object();

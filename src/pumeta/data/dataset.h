@@ -12,6 +12,9 @@
 //                                      floor; sets with meshes only)
 //                      .../input_rel<p>.ply, input_abs<s>.ply   noisy inputs
 //   cases/<set>/x<r>/cases.json        the list of cases with their files
+// Simulated scan splits (scan_splits; scan_simulation.h) write cases like the real scans'
+// (GT = the whole simulated sweep, input = a random 1/r subset) plus the scene mesh, in the
+// same normalised frame, under cases/<set>/meshes/.
 #pragma once
 
 #include <cstdint>
@@ -22,6 +25,21 @@
 #include "pumeta/geometry/point_cloud.h"
 
 namespace pumeta {
+
+/// A split of simulated scans: scan_scenes scenes swept by one sensor.
+struct ScanSplitConfig {
+    /// The split's name, e.g. "test-lidar16" (a directory under cases/).
+    std::string split;
+    /// A sensor of scan_sensor(): "lidar16", "lidar32", "lidar64" or "terrestrial".
+    std::string sensor;
+    /// Where the scenes' objects come from. "test": half from the meshes of test-indist,
+    /// test-scans and test-humans, half newly generated shapes; "train": from the train
+    /// split's meshes (real and generated) only, for anything that tunes or trains.
+    std::string meshes = "test";
+
+    static ScanSplitConfig from_json(const nlohmann::json& j);
+    nlohmann::json to_json() const;
+};
 
 struct DatasetConfig {
     /// Where scripts/get-data.sh put the raw data; empty = no real data (generator only).
@@ -51,6 +69,13 @@ struct DatasetConfig {
     /// so a partial build writes exactly the files a full build would; its manifest goes to
     /// manifest-<splits>-x<ratios>.json instead of manifest.json.
     std::vector<std::string> splits;
+    /// Simulated scan splits (docs/data.md, "Simulated scans"); none by default.
+    std::vector<ScanSplitConfig> scan_splits;
+    /// Scenes per simulated split, objects per scene, and the seed of every choice, layout,
+    /// noise and dropout of the simulation.
+    int64_t scan_scenes = 4;
+    int64_t scan_objects = 16;
+    uint64_t scan_seed = 1;
 
     static DatasetConfig from_json(const nlohmann::json& j);
     nlohmann::json to_json() const;
