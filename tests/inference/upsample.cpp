@@ -6,6 +6,7 @@
 #include "pumeta/core/error.h"
 #include "pumeta/geometry/sampling.h"
 #include "pumeta/metrics/metrics.h"
+#include "pumeta/models/backbone.h"
 #include "support/test_util.h"
 
 namespace pumeta {
@@ -143,6 +144,15 @@ TEST(UpsampleCloud, RatioThatIsNotAPowerOfTheModelsIsAnInputError) {
     UpsampleOptions options;
     options.ratio = 8;
     EXPECT_THROW(upsample_cloud(*model, sphere_points(100, 6), options), InputError);
+}
+
+TEST(UpsampleCloud, RatioErrorsNameTheRatiosAModelServesDirectly) {
+    auto model = make_backbone(small_backbone_config("metapu"));  // any ratio 2..16
+    EXPECT_EQ(output_ratio(*model, 16), 16);  // its ratio 4, twice
+    EXPECT_TRUE(test::throws_input_error([&] { output_ratio(*model, 17); },
+                                         {"--ratio", "ratio 17", "serves (2-16)"}));
+    EXPECT_TRUE(test::throws_input_error([&] { output_ratio(*small_pugcn(4), 8); },
+                                         {"not a power of the model's ratio 4"}));
 }
 
 TEST(MidpointUpsample, ExactCountAndPointsBetweenNeighbours) {

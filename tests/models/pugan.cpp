@@ -7,6 +7,7 @@
 #include <ATen/ATen.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
 
 #include "pumeta/core/error.h"
@@ -184,6 +185,44 @@ TEST(PuGan, DiscriminatorLossIsLsganAndReachesOnlyTheDiscriminator) {
     // Same seed, same discriminator.
     EXPECT_TRUE(model.make_auxiliary(10).at("d.conv0.weight").equal(d.at("d.conv0.weight")));
     EXPECT_FALSE(model.make_auxiliary(11).at("d.conv0.weight").equal(d.at("d.conv0.weight")));
+}
+
+TEST(PuGan, DiscriminatorStepReusesTheGeneratorOutputOfItsBatch) {
+    PuGan model = make(small());
+    ParamMap d = model.make_auxiliary(13);
+    at::Tensor y = test::sheet(2, 64, 14);
+    at::Tensor x = model.downsample(y, 15);
+    auto fake_score = [&](const at::Tensor& fake) {
+        at::NoGradGuard no_grad;
+        return pugan_discriminate(y, d).sub(1).pow(2).mean().item<double>() +
+               pugan_discriminate(fake, d).pow(2).mean().item<double>();
+    };
+    at::Tensor before;
+    {
+        at::NoGradGuard no_grad;
+        before = model.upsample(x);
+    }
+    model.training_terms(x, y, model.parameters(), d, 0);
+    {
+        at::NoGradGuard no_grad;  // the generator's update between the two calls
+        for (auto& [name, p] : model.parameters()) p.add_(0.05);
+    }
+    at::Tensor after;
+    {
+        at::NoGradGuard no_grad;
+        after = model.upsample(x);
+    }
+    ASSERT_GT(std::abs(fake_score(before) - fake_score(after)), 1e-6)
+        << "the update changes D's input";
+    // The same batch: the output from before the update, as the original's D-first order.
+    EXPECT_NEAR(model.auxiliary_loss(x, y, model.parameters(), d, 0).item<double>(),
+                fake_score(before), 1e-6);
+    // Used once: a second call, or another input tensor, upsamples with the current weights.
+    EXPECT_NEAR(model.auxiliary_loss(x, y, model.parameters(), d, 0).item<double>(),
+                fake_score(after), 1e-6);
+    model.training_terms(x, y, model.parameters(), d, 0);
+    EXPECT_NEAR(model.auxiliary_loss(x.clone(), y, model.parameters(), d, 0).item<double>(),
+                fake_score(after), 1e-6);
 }
 
 TEST(PuGan, TrainsWithItsDiscriminatorKeptInTheRunStateOnly) {

@@ -206,13 +206,45 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
 
 }  // namespace
 
+namespace {
+
+/// The ratios up to 256 that the model's weights serve directly (config_for_ratio), written
+/// as ranges: "2-16", "2, 4, 8, 16"; empty when it serves only its own.
+std::string direct_ratios(const Backbone& model) {
+    std::vector<std::pair<int64_t, int64_t>> runs;
+    for (int64_t r = 2; r <= 256; ++r) {
+        if (r != model.ratio() && model.config_for_ratio(r).is_null()) continue;
+        if (!runs.empty() && runs.back().second == r - 1)
+            runs.back().second = r;
+        else
+            runs.emplace_back(r, r);
+    }
+    if (runs.size() == 1 && runs[0].first == runs[0].second) return "";
+    std::string text;
+    for (const auto& [first, last] : runs) {
+        if (!text.empty()) text += ", ";
+        text += first == last ? std::to_string(first)
+                              : std::to_string(first) + "-" + std::to_string(last);
+    }
+    return text;
+}
+
+}  // namespace
+
 int64_t output_ratio(const Backbone& model, int64_t requested) {
     const int64_t ratio = requested == 0 ? model.ratio() : requested;
     int64_t power = 1;
     while (power < ratio) power *= model.ratio();
-    if (power != ratio)
-        throw_input_error("--ratio", "ratio {} is not a power of the model's ratio {}", ratio,
-                          model.ratio());
+    if (power != ratio) {
+        const std::string direct = direct_ratios(model);
+        if (direct.empty())
+            throw_input_error("--ratio", "ratio {} is not a power of the model's ratio {}", ratio,
+                              model.ratio());
+        throw_input_error("--ratio",
+                          "ratio {} is neither one this model serves ({}) nor a power of its "
+                          "ratio {}",
+                          ratio, direct, model.ratio());
+    }
     return ratio;
 }
 

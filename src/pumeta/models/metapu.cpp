@@ -137,6 +137,35 @@ at::Tensor gather_rows(const at::Tensor& x, const at::Tensor& idx) {
         .view({batch, idx.size(1), idx.size(2), x.size(2)});
 }
 
+/// The original's input-only augmentation, per cloud: with probability ½ jitter σ 0.025
+/// clipped to ±0.05 per coordinate, and with probability ½ a small rotation (angles about x,
+/// y and z with σ 0.03 rad clipped to ±0.09). The loader's perturbations of the input do not
+/// reach Meta-PU, whose training_terms draws its own input from the ground truth.
+at::Tensor perturb_input(const at::Tensor& input, uint64_t seed) {
+    at::NoGradGuard no_grad;
+    at::Generator gen = at::detail::createCPUGenerator(seed);
+    const int64_t batch = input.size(0);
+    const at::TensorOptions cpu = at::TensorOptions().dtype(at::kFloat);
+    at::Tensor coin = at::rand({batch, 2}, gen, cpu);
+    at::Tensor jitter = at::clamp(at::randn(input.sizes(), gen, cpu) * 0.025, -0.05, 0.05);
+    jitter = jitter * (coin.select(1, 0) < 0.5).to(at::kFloat).view({batch, 1, 1});
+    at::Tensor angles = at::clamp(at::randn({batch, 3}, gen, cpu) * 0.03, -0.09, 0.09);
+    angles = angles * (coin.select(1, 1) < 0.5).to(at::kFloat).view({batch, 1});
+    angles = angles.contiguous();
+    const float* a = angles.data_ptr<float>();
+    std::vector<at::Tensor> rotated;
+    for (int64_t b = 0; b < batch; ++b, a += 3) {
+        const double cx = std::cos(a[0]), sx = std::sin(a[0]), cy = std::cos(a[1]);
+        const double sy = std::sin(a[1]), cz = std::cos(a[2]), sz = std::sin(a[2]);
+        at::Tensor rx = at::tensor(std::vector<double>{1, 0, 0, 0, cx, -sx, 0, sx, cx});
+        at::Tensor ry = at::tensor(std::vector<double>{cy, 0, sy, 0, 1, 0, -sy, 0, cy});
+        at::Tensor rz = at::tensor(std::vector<double>{cz, -sz, 0, sz, cz, 0, 0, 0, 1});
+        at::Tensor r = rz.view({3, 3}).matmul(ry.view({3, 3})).matmul(rx.view({3, 3}));
+        rotated.push_back(input[b].matmul(r.t().to(input.options())));
+    }
+    return at::stack(rotated) + jitter.to(input.options());
+}
+
 uint64_t splitmix64(uint64_t x) {
     x += 0x9e3779b97f4a7c15ULL;
     x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
@@ -237,9 +266,7 @@ MetaPu::MetaPu(const MetaPuOptions& options) : options_(options) {
 }
 
 nlohmann::json MetaPu::config_for_ratio(int64_t ratio) const {
-    if (ratio < 2 || ratio > max_ratio(options_))
-        throw_input_error("metapu ratio", "{} is outside the ratios 2..{} this model serves", ratio,
-                          max_ratio(options_));
+    if (ratio < 2 || ratio > max_ratio(options_)) return nullptr;
     MetaPuOptions options = options_;
     options.ratio = ratio;
     options.patch_size =
@@ -388,6 +415,7 @@ LossTerms MetaPu::training_terms(const at::Tensor& input, const at::Tensor& targ
     const int64_t n = std::max<int64_t>(2, 10 * m / tenths);
     const int64_t truth = std::min(m, n * tenths / 10);
     at::Tensor sparse = metapu_sparse_input(target, n, splitmix64(uint64_t(step) ^ 0x5eedULL));
+    sparse = perturb_input(sparse, splitmix64(uint64_t(step) ^ 0x7e57ULL));
     return loss_terms(sparse, target.narrow(1, 0, truth), params, step);
 }
 

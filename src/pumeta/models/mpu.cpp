@@ -365,7 +365,8 @@ at::Tensor Mpu::upsample(const at::Tensor& x, const ParamMap& params) const {
 }
 
 double Mpu::level_weight(int64_t levels) const {
-    return options_.fidelity_weight * double(options_.levels - levels + 1);
+    // The original's 50·(log₂ R − i) for the ratio R the model trains at, i = levels − 1.
+    return options_.fidelity_weight * double(active_levels() - levels + 1);
 }
 
 at::Tensor Mpu::loss(const at::Tensor& input, const at::Tensor& target, const ParamMap& params,

@@ -11,6 +11,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <nlohmann/json.hpp>
 #include <string>
 
@@ -118,7 +119,10 @@ class PuGan : public Backbone {
                              const ParamMap& params, const ParamMap& auxiliary,
                              int64_t step) const override;
     /// The LSGAN discriminator loss mean_b (D(target) − 1)² + mean_b D(upsample(input))², the
-    /// generated points without gradient.
+    /// generated points without gradient. The trainer calls it after training_terms on the
+    /// same batch: the generator's output from there is reused (the discriminator sees the
+    /// output before the generator's update, as in the original, where its step comes
+    /// first), so the step pays for one generator pass; another input is upsampled afresh.
     at::Tensor auxiliary_loss(const at::Tensor& input, const at::Tensor& target,
                               const ParamMap& params, const ParamMap& auxiliary,
                               int64_t step) const override;
@@ -133,6 +137,9 @@ class PuGan : public Backbone {
     void check_input(const at::Tensor& x, const ParamMap& params, const char* what) const;
 
     PuGanOptions options_;
+    /// training_terms' input and its output without gradient, for auxiliary_loss.
+    mutable std::mutex last_mutex_;
+    mutable at::Tensor last_input_, last_output_;
 };
 
 /// The discriminator's score per cloud: cloud [B,M,3] -> [B] (linear, no sigmoid), with the
