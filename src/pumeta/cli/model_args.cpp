@@ -43,6 +43,11 @@ void add_model_options(CLI::App& command, ModelArgs& args, bool oracle_unit) {
         .add_option("--batch-patches", args.batch_patches,
                     "patches per forward pass (default: the backbone's fastest)")
         ->check(integer_in(1, 65536));
+    command
+        .add_option("--spacing-bound", args.spacing_bound,
+                    "keep each output point within this many times its nearest input point's "
+                    "own spacing to its neighbour (0 = off)")
+        ->check(CLI::Range(0.0, 1000.0));
     command.add_option("--device", args.device, "cpu or cuda");
 }
 
@@ -67,6 +72,7 @@ UpsampleOptions upsample_options(const ModelArgs& args, const ServedModel& serve
     options.ratio = served.ratio;
     options.seed = args.seed;
     options.batch_patches = args.batch_patches;
+    if (args.spacing_bound) options.spacing_bound = *args.spacing_bound;
     options.adaptation =
         adaptation_for(served.model.adaptation, served.model.meta_trained, overrides);
     return options;

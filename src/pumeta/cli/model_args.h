@@ -21,11 +21,13 @@ struct ModelArgs {
     std::string tta_unit;  // empty: the default (object); "oracle" is eval's diagnostic
     std::string tta_downsampler;
     std::string tta_optimizer;
-    int64_t batch_patches = 0;  // the backbone's
+    int64_t batch_patches = 0;            // the backbone's
+    std::optional<double> spacing_bound;  // the pipeline's default
     std::string device = "cpu";
 };
 
-/// --model, --ratio, --seed, --tta-*, --batch-patches, --device. `oracle_unit`: whether
+/// --model, --ratio, --seed, --tta-*, --batch-patches, --spacing-bound, --device. `oracle_unit`:
+/// whether
 /// --tta-unit accepts "oracle" (eval).
 void add_model_options(CLI::App& command, ModelArgs& args, bool oracle_unit);
 

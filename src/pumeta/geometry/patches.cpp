@@ -57,8 +57,30 @@ Patches extract_patches(const at::Tensor& cloud, const PatchOptions& options) {
     num_seeds = std::clamp<int64_t>(num_seeds, 1, n_points);
     Patches patches;
     patches.seeds = choose_seeds(cloud, num_seeds, options.fps_part_points);
-    at::Tensor seed_points = cloud.index_select(0, patches.seeds);
-    patches.indices = knn(cloud, seed_points, n).indices;  // [P,n]
+    KdTree tree(cloud);
+    patches.indices = tree.query(cloud.index_select(0, patches.seeds), n).indices;  // [P,n]
+    // Where density varies (scans: centimetres near the sensor, metres far away), seeds
+    // spread evenly in space leave dense regions out of every patch. Cover them: seeds by
+    // FPS among the points no patch holds, one per n of them, until every point is in a
+    // patch. A seed is marked covered even if exact duplicates crowd it out of its own patch.
+    at::Tensor covered = at::zeros({n_points}, at::kBool);
+    covered.index_fill_(0, patches.indices.flatten(), true);
+    std::vector<at::Tensor> seeds = {patches.seeds}, indices = {patches.indices};
+    for (at::Tensor open = (~covered).nonzero().view(-1); open.numel() > 0;
+         open = (~covered).nonzero().view(-1)) {
+        const int64_t extra = (open.numel() + n - 1) / n;
+        at::Tensor local =
+            choose_seeds(cloud.index_select(0, open), extra, options.fps_part_points);
+        at::Tensor added = open.index_select(0, local);
+        at::Tensor rows = tree.query(cloud.index_select(0, added), n).indices;
+        covered.index_fill_(0, rows.flatten(), true);
+        covered.index_fill_(0, added, true);
+        seeds.push_back(added);
+        indices.push_back(rows);
+    }
+    patches.seeds = at::cat(seeds);
+    patches.indices = at::cat(indices);
+    num_seeds = patches.seeds.numel();
     at::Tensor points = cloud.index_select(0, patches.indices.flatten()).view({num_seeds, n, 3});
     patches.centers = points.mean(1);
     at::Tensor centred = points - patches.centers.unsqueeze(1);

@@ -29,7 +29,9 @@ struct PatchOptions {
 };
 
 /// Patches of a cloud [N,3]: seeds by farthest point sampling (from point 0; per k-d tree part
-/// above fps_part_points), each patch the seed's n nearest neighbours in the whole cloud.
+/// above fps_part_points), each patch the seed's n nearest neighbours in the whole cloud;
+/// then, while some points lie in no patch (dense regions of a cloud whose density varies),
+/// more seeds by FPS among those points, one per n of them. Every point is in a patch.
 /// Deterministic.
 Patches extract_patches(const at::Tensor& cloud, const PatchOptions& options = {});
 

@@ -37,11 +37,36 @@ at::Tensor select_exactly(const at::Tensor& candidates, int64_t count, double fp
                           uint64_t seed) {
     int64_t m = candidates.size(0);
     if (m == count) return candidates;
+    if (m == 0) throw InternalError("upsample: no candidate points to select from");
     if (m > count && fps_affordable(m, count, fps_budget))
         return candidates.index_select(0, farthest_point_sampling(candidates, count, 0));
     if (m > count) return candidates.index_select(0, random_subset(m, count, seed));
-    at::Tensor extra = candidates.index_select(0, random_subset(m, count - m, seed));
-    return at::cat({candidates, extra});
+    // Short by more than m (a merge that kept under half): whole copies first, then a random
+    // subset for the rest.
+    const int64_t copies = count / m;
+    at::Tensor repeated = candidates.repeat({copies, 1});
+    if (count == copies * m) return repeated;
+    at::Tensor extra = candidates.index_select(0, random_subset(m, count - copies * m, seed));
+    return at::cat({repeated, extra});
+}
+
+/// Pulls every output point q towards its nearest input point p until
+/// |q − p| <= bound · (distance from p to its nearest other input point).
+/// cloud [N,3], outputs [..., 3] (same frame) -> outputs' shape.
+at::Tensor bound_to_spacing(const at::Tensor& cloud, const at::Tensor& outputs, double bound) {
+    if (cloud.size(0) < 2) return outputs;
+    at::Tensor flat = outputs.reshape({-1, 3}).contiguous();
+    KdTree tree(cloud);
+    at::Tensor spacing = tree.query(cloud, 2).sq_distances.select(1, 1).sqrt();  // [N]
+    KnnResult nearest = tree.query(flat, 1);
+    at::Tensor parent = nearest.indices.squeeze(1);
+    at::Tensor radius = spacing.index_select(0, parent) * bound;
+    at::Tensor source = cloud.index_select(0, parent);
+    at::Tensor offset = flat - source;
+    at::Tensor length = offset.norm(2, 1);
+    at::Tensor shrink =
+        at::where(length > radius, radius / length.clamp_min(1e-30), at::ones_like(length));
+    return (source + offset * shrink.unsqueeze(1)).view(outputs.sizes());
 }
 
 /// Keeps the outputs of each patch that fall in the region the patch "owns": an output point
@@ -194,6 +219,8 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
         result.loss_after = after_sum / num_patches;
     }
     at::Tensor upsampled = denormalize_patches(patches, at::cat(outputs));  // [P, m, 3]
+    if (options.spacing_bound > 0)
+        upsampled = bound_to_spacing(cloud, upsampled, options.spacing_bound);
     int64_t target = r * cloud.size(0);
     at::Tensor candidates = upsampled.reshape({-1, 3}).contiguous();
     if (fps_affordable(candidates.size(0), target, options.fps_budget))

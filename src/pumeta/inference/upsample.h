@@ -36,6 +36,11 @@ struct UpsampleOptions {
     /// (8e8) and the second 4× pass of 16× (3.2e9) stay with FPS; 10k inputs at 4× (4.8e9)
     /// take the merge.
     double fps_budget = 4e9;
+    /// Density-aware bound (0 = off): each output point is pulled towards its nearest input
+    /// point p until it lies within spacing_bound × (the distance from p to p's nearest other
+    /// input point), so that no network spreads children farther than the input's own spacing
+    /// there (sparse far-range scan returns; docs/design.md, "Scans").
+    double spacing_bound = 0;
     /// A progress bar over the patch batches on a terminal (`pumeta upsample`; off inside
     /// `pumeta eval`, which has its own).
     bool show_progress = false;
