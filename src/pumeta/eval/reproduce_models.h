@@ -18,11 +18,13 @@ class ModelFiles {
 
     /// The checkpoint of a backbone at a ratio: <bb>-x<r>[-meta].pt, else a model of a smaller
     /// ratio that the pipeline can apply repeatedly (16× = 4× twice), else the main ratio's
-    /// model when its weights serve any ratio (PU-Dense; load_inference_model rebuilds it).
+    /// model when its weights serve any ratio (PU-Dense; load_inference_model rebuilds it),
+    /// else <bb>[-meta].pt when it serves the ratio (MPU's 2×-16×, Meta-PU's 2×-16×).
     std::optional<std::string> find(const std::string& backbone, int64_t ratio, bool meta) const;
 
   private:
-    /// Whether the checkpoint's backbone rebuilds at `ratio` (config_for_ratio), loaded once.
+    /// Whether the checkpoint's backbone is at `ratio` or rebuilds there (config_for_ratio),
+    /// loaded once.
     bool serves_ratio(const std::string& file, int64_t ratio) const;
 
     std::string models_dir_;
