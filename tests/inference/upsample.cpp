@@ -3,6 +3,8 @@
 #include <ATen/ATen.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
+
 #include "pumeta/core/error.h"
 #include "pumeta/geometry/sampling.h"
 #include "pumeta/metrics/metrics.h"
@@ -148,11 +150,44 @@ TEST(UpsampleCloud, RatioThatIsNotAPowerOfTheModelsIsAnInputError) {
 
 TEST(UpsampleCloud, RatioErrorsNameTheRatiosAModelServesDirectly) {
     auto model = make_backbone(small_backbone_config("metapu"));  // any ratio 2..16
-    EXPECT_EQ(output_ratio(*model, 16), 16);  // its ratio 4, twice
+    EXPECT_EQ(output_ratio(*model, 16), 16);                      // its ratio 4, twice
     EXPECT_TRUE(test::throws_input_error([&] { output_ratio(*model, 17); },
                                          {"--ratio", "ratio 17", "serves (2-16)"}));
     EXPECT_TRUE(test::throws_input_error([&] { output_ratio(*small_pugcn(4), 8); },
                                          {"not a power of the model's ratio 4"}));
+}
+
+TEST(UpsampleCloud, WholeCloudInferenceRunsTheCloudInItsPartsAtThePatchesSpacing) {
+    auto model = small_pugcn(4);
+    at::Tensor cloud = sphere_points(300, 8);
+    UpsampleOptions options;
+    options.whole_cloud_points = 1000;
+    UpsampleResult whole = upsample_cloud(*model, cloud, options);
+    EXPECT_EQ(whole.points.sizes(), (at::IntArrayRef{1200, 3}));
+    EXPECT_EQ(whole.patches, 1);
+    EXPECT_TRUE(at::isfinite(whole.points).all().item<bool>());
+    options.whole_cloud_points = 100;  // k-d tree parts of at most 100 points
+    UpsampleResult parts = upsample_cloud(*model, cloud, options);
+    EXPECT_EQ(parts.points.size(0), 1200);
+    EXPECT_GE(parts.patches, 3);
+    // The outputs stay at the cloud's scale (radius 1): the spacing scale is undone.
+    EXPECT_LT(whole.points.norm(2, 1).max().item<double>(), 3.0);
+    // Adaptation adapts on the patches, then the whole cloud runs with θ'; a θ' per patch
+    // has nothing to run on.
+    options.whole_cloud_points = 1000;
+    options.adaptation.inner.steps = 1;
+    options.adaptation.inner.step_size = 1e-3;
+    UpsampleResult adapted = upsample_cloud(*model, cloud, options);
+    EXPECT_EQ(adapted.points.size(0), 1200);
+    EXPECT_TRUE(std::isfinite(adapted.loss_after));
+    EXPECT_FALSE(adapted.points.equal(whole.points));
+    options.adaptation.unit = AdaptationUnit::kPatch;
+    EXPECT_TRUE(test::throws_input_error([&] { upsample_cloud(*model, cloud, options); },
+                                         {"--tta-unit", "whole-cloud"}));
+    // 0: patches, whatever the backbone prefers.
+    options = UpsampleOptions{};
+    options.whole_cloud_points = 0;
+    EXPECT_GT(upsample_cloud(*model, cloud, options).patches, 1);
 }
 
 TEST(MidpointUpsample, ExactCountAndPointsBetweenNeighbours) {

@@ -48,6 +48,12 @@ void add_model_options(CLI::App& command, ModelArgs& args, bool oracle_unit) {
                     "keep each output point within this many times its nearest input point's "
                     "own spacing to its neighbour (0 = off)")
         ->check(CLI::Range(0.0, 1000.0));
+    command
+        .add_option("--whole-cloud", args.whole_cloud,
+                    "run the network on the whole cloud (k-d tree parts of at most this many "
+                    "points), scaled to the patches' point spacing; 0 = on patches (default: "
+                    "the backbone's choice, whole clouds for PU-Dense)")
+        ->check(integer_in(0, 100000000));
     command.add_option("--device", args.device, "cpu or cuda");
 }
 
@@ -73,6 +79,7 @@ UpsampleOptions upsample_options(const ModelArgs& args, const ServedModel& serve
     options.seed = args.seed;
     options.batch_patches = args.batch_patches;
     if (args.spacing_bound) options.spacing_bound = *args.spacing_bound;
+    if (args.whole_cloud) options.whole_cloud_points = *args.whole_cloud;
     options.adaptation =
         adaptation_for(served.model.adaptation, served.model.meta_trained, overrides);
     return options;

@@ -23,6 +23,7 @@ struct ModelArgs {
     std::string tta_optimizer;
     int64_t batch_patches = 0;            // the backbone's
     std::optional<double> spacing_bound;  // the pipeline's default
+    std::optional<int64_t> whole_cloud;   // the backbone's choice; 0: patches
     std::string device = "cpu";
 };
 

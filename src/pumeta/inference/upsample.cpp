@@ -12,6 +12,7 @@
 #include "pumeta/core/progress.h"
 #include "pumeta/core/tensor_checks.h"
 #include "pumeta/core/threads.h"
+#include "pumeta/geometry/kdtree_partition.h"
 #include "pumeta/geometry/knn.h"
 #include "pumeta/geometry/patches.h"
 #include "pumeta/geometry/sampling.h"
@@ -120,6 +121,38 @@ AdaptationPairs cloud_scale_pairs(const Backbone& model, const at::Tensor& cloud
     return {(input - center) / scale, (target - center) / scale};
 }
 
+/// Median over the points of clouds [B,n,3] of the distance to their nearest other point.
+double median_spacing(const at::Tensor& clouds) {
+    at::Tensor sq = knn(clouds, clouds, 2).sq_distances.select(-1, 1);
+    return sq.flatten().median().sqrt().item<double>();
+}
+
+/// Whole-cloud inference (UpsampleOptions::whole_cloud_points): the cloud, scaled to the
+/// median point spacing of its patches, through the network with `params`, in k-d tree parts
+/// of at most `part_points`; exactly r·N points.
+at::Tensor upsample_whole(const Backbone& model, const ParamMap& params, const at::Tensor& cloud,
+                          const Patches& patches, int64_t part_points,
+                          const UpsampleOptions& options, UpsampleResult& result) {
+    const double scale = cloud.size(0) < 2 || patches.points.size(1) < 2
+                             ? 1.0
+                             : median_spacing(patches.points) / median_spacing(cloud);
+    std::vector<at::Tensor> parts =
+        cloud.size(0) <= part_points ? std::vector<at::Tensor>{at::arange(cloud.size(0), at::kLong)}
+                                     : kdtree_partition(cloud, part_points);
+    std::vector<at::Tensor> outputs;
+    ThreadCountGuard one_thread(1);
+    at::NoGradGuard no_grad;
+    for (const at::Tensor& part : parts) {
+        at::Tensor points = cloud.index_select(0, part);
+        at::Tensor centre = points.mean(0, /*keepdim=*/true);
+        at::Tensor x = ((points - centre) * scale).unsqueeze(0);
+        outputs.push_back(model.upsample(x, params).squeeze(0) / scale + centre);
+        result.patches += 1;
+    }
+    return select_exactly(at::cat(outputs).contiguous(), model.ratio() * cloud.size(0),
+                          options.fps_budget, options.seed);
+}
+
 at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
                          const UpsampleOptions& options, const Normalization& frame,
                          const PairSource& pair_source, UpsampleResult& result) {
@@ -129,7 +162,6 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
     patch_options.coverage = options.coverage;
     Patches patches = extract_patches(cloud, patch_options);
     int64_t num_patches = patches.points.size(0);
-    result.patches += num_patches;
 
     // Test-time adaptation (Algorithm 2): θ' from N steps on L(F_θ(X↓), X).
     const Adaptation& adaptation = options.adaptation;
@@ -164,6 +196,12 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
                    : random_subset(rows, adaptation.max_patches, options.seed);
     };
     const bool per_patch = adaptation.unit == AdaptationUnit::kPatch && !pair_source;
+    const int64_t whole_cloud = options.whole_cloud_points ? *options.whole_cloud_points
+                                                           : model.inference_whole_cloud_points();
+    if (whole_cloud > 0 && adaptation.enabled() && per_patch)
+        throw_input_error("--tta-unit",
+                          "patch adapts each patch, but whole-cloud inference "
+                          "(--whole-cloud) runs none; use object or cloud");
     if (adaptation.enabled() && !per_patch) {
         std::pair<ParamMap, std::vector<double>> adapted;
         if (adaptation.unit == AdaptationUnit::kObject && !pair_source) {
@@ -181,6 +219,9 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
         result.loss_after = adapted.second.back();
     }
     result.tta_seconds += seconds_since(tta_start);
+    if (whole_cloud > 0)
+        return upsample_whole(model, object_params, cloud, patches, whole_cloud, options, result);
+    result.patches += num_patches;
 
     // The network runs on one thread (core/threads.h), so that its outputs have the same bits
     // whatever the thread count; the geometry around it (patches, kNN, FPS) stays parallel,

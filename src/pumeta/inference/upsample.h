@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <functional>
 #include <limits>
+#include <optional>
 #include <string>
 
 #include "pumeta/geometry/normalize.h"
@@ -41,6 +42,13 @@ struct UpsampleOptions {
     /// input point), so that no network spreads children farther than the input's own spacing
     /// there (sparse far-range scan returns; docs/design.md, "Scans").
     double spacing_bound = 0;
+    /// Whole-cloud inference (PU-Dense's own protocol) instead of patches: the cloud, scaled
+    /// so that its median point spacing equals that of the patches the pipeline would cut,
+    /// runs through the network in one piece, or in k-d tree parts of at most this many
+    /// points (adaptation, if any, still adapts on the patches). 0 = patches; unset = the
+    /// backbone's choice (Backbone::inference_whole_cloud_points; docs/design.md,
+    /// "Where PU-Dense's error comes from").
+    std::optional<int64_t> whole_cloud_points;
     /// A progress bar over the patch batches on a terminal (`pumeta upsample`; off inside
     /// `pumeta eval`, which has its own).
     bool show_progress = false;

@@ -49,6 +49,10 @@ class Backbone {
     /// Patches per forward pass that upsample fastest on a CPU when the caller does not say
     /// (UpsampleOptions::batch_patches = 0). Results do not depend on it.
     virtual int64_t inference_batch_patches() const { return 64; }
+    /// Above 0, the pipeline runs the network on whole clouds (k-d tree parts of at most this
+    /// many points) scaled to its patches' point spacing, instead of on patches, unless the
+    /// caller says otherwise (UpsampleOptions::whole_cloud_points). Default 0: patches.
+    virtual int64_t inference_whole_cloud_points() const { return 0; }
 
     /// The backbone's own parameters (leaf tensors with requires_grad = true).
     ParamMap& parameters() { return params_; }
