@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "pumeta/core/error.h"
+#include "pumeta/inference/upsample.h"
 #include "support/test_util.h"
 
 namespace pumeta {
@@ -197,6 +198,9 @@ TEST_F(ReproduceTest, AnInterruptedCellResumesAfterItsLastFinishedCase) {
         std::ofstream(cell / "spec.partial.json") << identity.dump();
     };
     const nlohmann::json identity = read_json(cell / "spec.json");
+    // A network cell is tied to the weights and to the pipeline that produced its points.
+    EXPECT_TRUE(identity.contains("model_sha256"));
+    EXPECT_EQ(identity.value("pipeline", int64_t(0)), kPipelineVersion);
 
     // The finished row is kept, not evaluated again.
     interrupt(marked + "\n", identity);

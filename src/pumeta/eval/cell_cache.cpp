@@ -17,6 +17,7 @@
 #include "pumeta/eval/cases_csv.h"
 #include "pumeta/eval/evaluate_cases.h"
 #include "pumeta/inference/model_file.h"
+#include "pumeta/inference/upsample.h"
 
 namespace pumeta {
 
@@ -244,6 +245,8 @@ const nlohmann::json& CellCache::identity_of(const std::string& key, const RunSp
                                {"max_cases", max_cases},
                                {"figure_cases", config_.figure_cases}};
     if (spec.method == "network") identity["model_sha256"] = sha256_file(spec.model);
+    if (spec.method == "network" || spec.method == "zero-shot")
+        identity["pipeline"] = kPipelineVersion;
     // A zero-shot model starts fresh: only the architecture matters, not the weights.
     if (spec.method == "zero-shot") {
         nlohmann::json architecture = load_inference_model(spec.model).backbone->config();
