@@ -6,6 +6,7 @@
 #include <cmath>
 
 #include "pumeta/core/error.h"
+#include "pumeta/geometry/knn.h"
 #include "pumeta/geometry/sampling.h"
 #include "pumeta/metrics/metrics.h"
 #include "pumeta/models/backbone.h"
@@ -188,6 +189,52 @@ TEST(UpsampleCloud, WholeCloudInferenceRunsTheCloudInItsPartsAtThePatchesSpacing
     options = UpsampleOptions{};
     options.whole_cloud_points = 0;
     EXPECT_GT(upsample_cloud(*model, cloud, options).patches, 1);
+}
+
+/// n evenly spread points on the unit sphere (a Fibonacci lattice).
+at::Tensor fibonacci_sphere(int64_t n) {
+    at::Tensor i = at::arange(n, at::kDouble) + 0.5;
+    at::Tensor z = 1 - 2 * i / double(n);
+    at::Tensor r = at::sqrt(1 - z * z);
+    at::Tensor phi = i * (M_PI * (3 - std::sqrt(5.0)));
+    return at::stack({r * at::cos(phi), r * at::sin(phi), z}, 1).to(at::kFloat);
+}
+
+/// A scan-like cloud: a dense cluster beside sparse points (spacing spread far above the
+/// threshold).
+at::Tensor scan_like(int64_t dense, int64_t sparse, uint64_t seed) {
+    return at::cat({sphere_points(sparse, seed), sphere_points(dense, seed + 1) * 0.05 + 0.5});
+}
+
+TEST(UpsampleCloud, SpacingSpreadSeparatesEvenSamplesFromScans) {
+    EXPECT_LT(spacing_spread(fibonacci_sphere(500)), 1.5);
+    // Uniformly random points on a surface (a random subset of a scan of it) stay below.
+    EXPECT_LT(spacing_spread(sphere_points(2000, 11)), kScanSpacingSpread);
+    EXPECT_GT(spacing_spread(scan_like(400, 200, 9)), 2 * kScanSpacingSpread);
+    EXPECT_EQ(spacing_spread(at::zeros({2, 3})), 1.0);
+    EXPECT_EQ(spacing_spread(at::zeros({5, 3})), 1.0);  // all coincident
+}
+
+TEST(UpsampleCloud, KeepsTheInputPointsOfScansByDefault) {
+    auto model = small_pugcn(4);
+    auto contains_input = [](const at::Tensor& out, const at::Tensor& in) {
+        // Up to the round trip through the unit-sphere frame.
+        return knn(out, in, 1).sq_distances.max().item<double>() < 1e-10;
+    };
+    UpsampleOptions options;
+    at::Tensor scan = scan_like(300, 100, 10);
+    UpsampleResult automatic = upsample_cloud(*model, scan, options);
+    EXPECT_EQ(automatic.points.size(0), 1600);
+    EXPECT_TRUE(contains_input(automatic.points, scan));
+    options.keep_input = false;
+    EXPECT_FALSE(contains_input(upsample_cloud(*model, scan, options).points, scan));
+    // An even sample keeps only network points unless asked.
+    at::Tensor even = fibonacci_sphere(300);
+    EXPECT_FALSE(contains_input(upsample_cloud(*model, even, UpsampleOptions{}).points, even));
+    options.keep_input = true;
+    UpsampleResult kept = upsample_cloud(*model, even, options);
+    EXPECT_EQ(kept.points.size(0), 1200);
+    EXPECT_TRUE(contains_input(kept.points, even));
 }
 
 TEST(MidpointUpsample, ExactCountAndPointsBetweenNeighbours) {

@@ -54,6 +54,11 @@ void add_model_options(CLI::App& command, ModelArgs& args, bool oracle_unit) {
                     "points), scaled to the patches' point spacing; 0 = on patches (default: "
                     "the backbone's choice, whole clouds for PU-Dense)")
         ->check(integer_in(0, 100000000));
+    command
+        .add_option("--keep-input", args.keep_input,
+                    "keep the input points among the outputs: on, off or auto (default: on for "
+                    "inputs whose point spacing varies as a scan's)")
+        ->check(CLI::IsMember({"auto", "on", "off"}));
     command.add_option("--device", args.device, "cpu or cuda");
 }
 
@@ -80,6 +85,7 @@ UpsampleOptions upsample_options(const ModelArgs& args, const ServedModel& serve
     options.batch_patches = args.batch_patches;
     if (args.spacing_bound) options.spacing_bound = *args.spacing_bound;
     if (args.whole_cloud) options.whole_cloud_points = *args.whole_cloud;
+    if (args.keep_input != "auto") options.keep_input = args.keep_input == "on";
     options.adaptation =
         adaptation_for(served.model.adaptation, served.model.meta_trained, overrides);
     return options;

@@ -24,6 +24,7 @@ struct ModelArgs {
     int64_t batch_patches = 0;            // the backbone's
     std::optional<double> spacing_bound;  // the pipeline's default
     std::optional<int64_t> whole_cloud;   // the backbone's choice; 0: patches
+    std::string keep_input = "auto";      // on, off, auto
     std::string device = "cpu";
 };
 

@@ -121,6 +121,19 @@ AdaptationPairs cloud_scale_pairs(const Backbone& model, const at::Tensor& cloud
     return {(input - center) / scale, (target - center) / scale};
 }
 
+/// Whether a pass keeps its input points among its outputs.
+bool keeps_input(const at::Tensor& cloud, const UpsampleOptions& options) {
+    return options.keep_input ? *options.keep_input : spacing_spread(cloud) > kScanSpacingSpread;
+}
+
+/// Exactly r·N points of a pass from its candidates: the input points and (r−1)·N candidates
+/// when the pass keeps them (keeps_input), else r·N candidates. `select` picks a count.
+at::Tensor pass_output(const at::Tensor& cloud, int64_t r, const UpsampleOptions& options,
+                       const std::function<at::Tensor(int64_t)>& select) {
+    if (!keeps_input(cloud, options)) return select(r * cloud.size(0));
+    return at::cat({cloud, select((r - 1) * cloud.size(0))});
+}
+
 /// Median over the points of clouds [B,n,3] of the distance to their nearest other point.
 double median_spacing(const at::Tensor& clouds) {
     at::Tensor sq = knn(clouds, clouds, 2).sq_distances.select(-1, 1);
@@ -149,8 +162,10 @@ at::Tensor upsample_whole(const Backbone& model, const ParamMap& params, const a
         outputs.push_back(model.upsample(x, params).squeeze(0) / scale + centre);
         result.patches += 1;
     }
-    return select_exactly(at::cat(outputs).contiguous(), model.ratio() * cloud.size(0),
-                          options.fps_budget, options.seed);
+    at::Tensor candidates = at::cat(outputs).contiguous();
+    return pass_output(cloud, model.ratio(), options, [&](int64_t count) {
+        return select_exactly(candidates, count, options.fps_budget, options.seed);
+    });
 }
 
 at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
@@ -262,17 +277,27 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
     at::Tensor upsampled = denormalize_patches(patches, at::cat(outputs));  // [P, m, 3]
     if (options.spacing_bound > 0)
         upsampled = bound_to_spacing(cloud, upsampled, options.spacing_bound);
-    int64_t target = r * cloud.size(0);
-    at::Tensor candidates = upsampled.reshape({-1, 3}).contiguous();
-    if (fps_affordable(candidates.size(0), target, options.fps_budget))
-        return select_exactly(candidates, target, options.fps_budget, options.seed);
-    // The merge leaves about `target` points: the few extra or missing go at random (an FPS
-    // over all of them to drop a few hundred would cost as much as the network).
-    candidates = merge_by_ownership(cloud, patches, upsampled);
-    return select_exactly(candidates, target, /*fps_budget=*/0, options.seed);
+    return pass_output(cloud, r, options, [&](int64_t target) {
+        at::Tensor candidates = upsampled.reshape({-1, 3}).contiguous();
+        if (fps_affordable(candidates.size(0), target, options.fps_budget))
+            return select_exactly(candidates, target, options.fps_budget, options.seed);
+        // The merge leaves about r·N points: the few extra or missing go at random (an FPS
+        // over all of them to drop a few hundred would cost as much as the network).
+        candidates = merge_by_ownership(cloud, patches, upsampled);
+        return select_exactly(candidates, target, /*fps_budget=*/0, options.seed);
+    });
 }
 
 }  // namespace
+
+double spacing_spread(const at::Tensor& cloud) {
+    check_points(cloud, "spacing_spread", 1);
+    if (cloud.size(0) < 3) return 1.0;
+    at::Tensor spacing = knn(cloud, cloud, 2).sq_distances.select(1, 1).sqrt().to(at::kDouble);
+    at::Tensor q = at::quantile(spacing, at::tensor({0.1, 0.9}, spacing.options()));
+    const double low = q[0].item<double>(), high = q[1].item<double>();
+    return low > 0 ? high / low : (high > 0 ? std::numeric_limits<double>::infinity() : 1.0);
+}
 
 namespace {
 
