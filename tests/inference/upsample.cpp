@@ -237,6 +237,29 @@ TEST(UpsampleCloud, KeepsTheInputPointsOfScansByDefault) {
     EXPECT_TRUE(contains_input(kept.points, even));
 }
 
+TEST(UpsampleCloud, LineProjectionPutsOutputsOnTheLinesOfLineLikeInputs) {
+    auto model = small_pugcn(4);
+    // Two parallel lines of 150 points each, 0.5 apart: every neighbourhood is line-like.
+    at::Tensor t = at::linspace(-1, 1, 150);
+    at::Tensor zero = at::zeros({150});
+    at::Tensor lines =
+        at::cat({at::stack({t, zero, zero}, 1), at::stack({t, zero + 0.5, zero}, 1)});
+    UpsampleOptions options;
+    options.line_projection = 0.3;
+    at::Tensor out = upsample_cloud(*model, lines, options).points;
+    ASSERT_EQ(out.size(0), 1200);
+    at::Tensor y = out.select(1, 1), z = out.select(1, 2);
+    at::Tensor off_line = at::minimum(y.abs(), (y - 0.5).abs());
+    EXPECT_LT(off_line.max().item<double>(), 1e-4);
+    EXPECT_LT(z.abs().max().item<double>(), 1e-4);
+    // Without it the network's points leave the lines.
+    options.line_projection = 0.0;
+    at::Tensor free = upsample_cloud(*model, lines, options).points;
+    EXPECT_GT(
+        at::minimum(free.select(1, 1).abs(), (free.select(1, 1) - 0.5).abs()).max().item<double>(),
+        1e-3);
+}
+
 TEST(MidpointUpsample, ExactCountAndPointsBetweenNeighbours) {
     at::Tensor input = sphere_points(500, 7);
     at::Tensor out = midpoint_upsample(input, 4);

@@ -59,6 +59,12 @@ void add_model_options(CLI::App& command, ModelArgs& args, bool oracle_unit) {
                     "keep the input points among the outputs: on, off or auto (default: on for "
                     "inputs whose point spacing varies as a scan's)")
         ->check(CLI::IsMember({"auto", "on", "off"}));
+    command
+        .add_option("--line-projection", args.line_projection,
+                    "move outputs onto the line of their nearest input point where its "
+                    "neighbours are line-like (linearity above this, 0-1; 0 = off; default: "
+                    "0.3 for scans, else off)")
+        ->check(CLI::Range(0.0, 1.0));
     command.add_option("--device", args.device, "cpu or cuda");
 }
 
@@ -85,6 +91,7 @@ UpsampleOptions upsample_options(const ModelArgs& args, const ServedModel& serve
     options.batch_patches = args.batch_patches;
     if (args.spacing_bound) options.spacing_bound = *args.spacing_bound;
     if (args.whole_cloud) options.whole_cloud_points = *args.whole_cloud;
+    if (args.line_projection) options.line_projection = *args.line_projection;
     if (args.keep_input != "auto") options.keep_input = args.keep_input == "on";
     options.adaptation =
         adaptation_for(served.model.adaptation, served.model.meta_trained, overrides);

@@ -21,10 +21,11 @@ struct ModelArgs {
     std::string tta_unit;  // empty: the default (object); "oracle" is eval's diagnostic
     std::string tta_downsampler;
     std::string tta_optimizer;
-    int64_t batch_patches = 0;            // the backbone's
-    std::optional<double> spacing_bound;  // the pipeline's default
-    std::optional<int64_t> whole_cloud;   // the backbone's choice; 0: patches
-    std::string keep_input = "auto";      // on, off, auto
+    int64_t batch_patches = 0;              // the backbone's
+    std::optional<double> spacing_bound;    // the pipeline's default
+    std::optional<int64_t> whole_cloud;     // the backbone's choice; 0: patches
+    std::string keep_input = "auto";        // on, off, auto
+    std::optional<double> line_projection;  // automatic
     std::string device = "cpu";
 };
 

@@ -54,6 +54,27 @@ at::Tensor select_exactly(const at::Tensor& candidates, int64_t count, double fp
 /// Pulls every output point q towards its nearest input point p until
 /// |q − p| <= bound · (distance from p to its nearest other input point).
 /// cloud [N,3], outputs [..., 3] (same frame) -> outputs' shape.
+at::Tensor project_onto_lines(const at::Tensor& cloud, const at::Tensor& outputs,
+                              double threshold) {
+    const int64_t k = std::min<int64_t>(8, cloud.size(0));
+    if (k < 3) return outputs;
+    KdTree tree(cloud);
+    at::Tensor neighbours =
+        cloud.index_select(0, tree.query(cloud, k).indices.flatten()).view({-1, k, 3});
+    at::Tensor centred = (neighbours - neighbours.mean(1, /*keepdim=*/true)).to(at::kDouble);
+    auto [values, vectors] = at::linalg_eigh(centred.transpose(1, 2).matmul(centred));
+    at::Tensor largest = values.select(1, 2);
+    at::Tensor linear = (largest - values.select(1, 1)) > threshold * largest.clamp_min(1e-300);
+    at::Tensor axis = vectors.select(2, 2).to(cloud.scalar_type());  // [N,3]
+    at::Tensor flat = outputs.reshape({-1, 3}).contiguous();
+    at::Tensor parent = tree.query(flat, 1).indices.squeeze(1);
+    at::Tensor source = cloud.index_select(0, parent);
+    at::Tensor direction = axis.index_select(0, parent);
+    at::Tensor along = source + ((flat - source) * direction).sum(1, true) * direction;
+    return at::where(linear.index_select(0, parent).unsqueeze(1), along, flat)
+        .view(outputs.sizes());
+}
+
 at::Tensor bound_to_spacing(const at::Tensor& cloud, const at::Tensor& outputs, double bound) {
     if (cloud.size(0) < 2) return outputs;
     at::Tensor flat = outputs.reshape({-1, 3}).contiguous();
@@ -121,18 +142,37 @@ AdaptationPairs cloud_scale_pairs(const Backbone& model, const at::Tensor& cloud
     return {(input - center) / scale, (target - center) / scale};
 }
 
-/// Whether a pass keeps its input points among its outputs.
-bool keeps_input(const at::Tensor& cloud, const UpsampleOptions& options) {
-    return options.keep_input ? *options.keep_input : spacing_spread(cloud) > kScanSpacingSpread;
-}
+/// How a pass treats its input: as a scan or not (UpsampleOptions::keep_input,
+/// line_projection).
+struct ScanHandling {
+    bool keep_input = false;
+    double line_projection = 0;
 
-/// Exactly r·N points of a pass from its candidates: the input points and (r−1)·N candidates
-/// when the pass keeps them (keeps_input), else r·N candidates. `select` picks a count.
-at::Tensor pass_output(const at::Tensor& cloud, int64_t r, const UpsampleOptions& options,
-                       const std::function<at::Tensor(int64_t)>& select) {
-    if (!keeps_input(cloud, options)) return select(r * cloud.size(0));
-    return at::cat({cloud, select((r - 1) * cloud.size(0))});
-}
+    ScanHandling(const at::Tensor& cloud, const UpsampleOptions& options) {
+        if (options.keep_input && options.line_projection) {
+            keep_input = *options.keep_input;
+            line_projection = *options.line_projection;
+            return;
+        }
+        const bool scan = spacing_spread(cloud) > kScanSpacingSpread;
+        keep_input = options.keep_input.value_or(scan);
+        line_projection = options.line_projection.value_or(scan ? kScanLineLinearity : 0.0);
+    }
+
+    /// The candidates [..., 3] after the line projection.
+    at::Tensor place(const at::Tensor& cloud, const at::Tensor& candidates) const {
+        return line_projection > 0 ? project_onto_lines(cloud, candidates, line_projection)
+                                   : candidates;
+    }
+
+    /// Exactly r·N points: the input points and (r−1)·N candidates when it keeps them, else
+    /// r·N candidates. `select` picks a count.
+    at::Tensor output(const at::Tensor& cloud, int64_t r,
+                      const std::function<at::Tensor(int64_t)>& select) const {
+        if (!keep_input) return select(r * cloud.size(0));
+        return at::cat({cloud, select((r - 1) * cloud.size(0))});
+    }
+};
 
 /// Median over the points of clouds [B,n,3] of the distance to their nearest other point.
 double median_spacing(const at::Tensor& clouds) {
@@ -162,8 +202,9 @@ at::Tensor upsample_whole(const Backbone& model, const ParamMap& params, const a
         outputs.push_back(model.upsample(x, params).squeeze(0) / scale + centre);
         result.patches += 1;
     }
-    at::Tensor candidates = at::cat(outputs).contiguous();
-    return pass_output(cloud, model.ratio(), options, [&](int64_t count) {
+    const ScanHandling scan(cloud, options);
+    at::Tensor candidates = scan.place(cloud, at::cat(outputs)).contiguous();
+    return scan.output(cloud, model.ratio(), [&](int64_t count) {
         return select_exactly(candidates, count, options.fps_budget, options.seed);
     });
 }
@@ -277,7 +318,9 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
     at::Tensor upsampled = denormalize_patches(patches, at::cat(outputs));  // [P, m, 3]
     if (options.spacing_bound > 0)
         upsampled = bound_to_spacing(cloud, upsampled, options.spacing_bound);
-    return pass_output(cloud, r, options, [&](int64_t target) {
+    const ScanHandling scan(cloud, options);
+    upsampled = scan.place(cloud, upsampled);
+    return scan.output(cloud, r, [&](int64_t target) {
         at::Tensor candidates = upsampled.reshape({-1, 3}).contiguous();
         if (fps_affordable(candidates.size(0), target, options.fps_budget))
             return select_exactly(candidates, target, options.fps_budget, options.seed);

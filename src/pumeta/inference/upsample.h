@@ -47,6 +47,11 @@ struct UpsampleOptions {
     /// input point), so that no network spreads children farther than the input's own spacing
     /// there (sparse far-range scan returns; docs/design.md, "Scans").
     double spacing_bound = 0;
+    /// Line projection (0 = off): where an input point's 8 nearest input points lie on a line
+    /// (linearity (λ1 − λ2)/λ1 of their covariance above this), output points whose nearest
+    /// input point it is move onto that line through it (scan lines of sparse sweeps).
+    /// Unset: kScanLineLinearity for scans (spacing_spread() > kScanSpacingSpread), else off.
+    std::optional<double> line_projection;
     /// Whole-cloud inference (PU-Dense's own protocol) instead of patches: the cloud, scaled
     /// so that its median point spacing equals that of the patches the pipeline would cut,
     /// runs through the network in one piece, or in k-d tree parts of at most this many
@@ -80,8 +85,11 @@ struct UpsampleResult {
 /// samples of surfaces (with noise up to 2.7), 2.3–2.6 for random subsets of aerial LiDAR,
 /// about 4.7 for uniformly random points on a surface, 9–11 for simulated 32-beam sweeps.
 double spacing_spread(const at::Tensor& cloud);
-/// Above this spacing_spread() the pipeline keeps the input points by default.
+/// Above this spacing_spread() a pass treats its input as a scan: it keeps the input points
+/// and projects outputs onto scan lines by default (docs/design.md, "Scans").
 inline constexpr double kScanSpacingSpread = 6.0;
+/// The line projection's linearity threshold for scans.
+inline constexpr double kScanLineLinearity = 0.3;
 
 /// The output ratio of `model` for a requested one: the model's own for 0, else `requested`,
 /// which must be a power of the model's ratio (InputError naming both otherwise).
