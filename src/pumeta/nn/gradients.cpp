@@ -22,4 +22,19 @@ ParamMap gradients(const at::Tensor& loss, const ParamMap& wrt, bool create_grap
     return result;
 }
 
+ParamMap used_gradients(const at::Tensor& loss, const ParamMap& wrt) {
+    std::vector<at::Tensor> inputs;
+    inputs.reserve(wrt.size());
+    for (const auto& [name, p] : wrt) inputs.push_back(p);
+    std::vector<at::Tensor> grads = torch::autograd::grad({loss}, inputs, {}, false, false,
+                                                          /*allow_unused=*/true);
+    ParamMap result;
+    size_t i = 0;
+    for (const auto& [name, p] : wrt) {
+        at::Tensor g = grads[i++];
+        if (g.defined()) result[name] = g;
+    }
+    return result;
+}
+
 }  // namespace pumeta

@@ -13,4 +13,9 @@ namespace pumeta {
 ParamMap gradients(const at::Tensor& loss, const ParamMap& wrt, bool create_graph = false,
                    bool retain_graph = false);
 
+/// The detached gradients of the parameters of `wrt` that the loss depends on; the others are
+/// absent, so that Adam leaves them and their moments untouched (levels a curriculum keeps
+/// out of a step).
+ParamMap used_gradients(const at::Tensor& loss, const ParamMap& wrt);
+
 }  // namespace pumeta

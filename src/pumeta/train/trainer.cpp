@@ -70,11 +70,13 @@ double distributed_validation_cd(const Backbone& model, const ValidationSet& val
 /// statistics each rank updated on its shard), the loss, and whether any rank wants to stop.
 void all_reduce_step(ProcessGroup& group, ParamMap& grads, ParamMap& buffers, double& loss,
                      bool& stop) {
-    const at::Tensor& like = grads.begin()->second;
+    // Every rank's loss reaches the same parameters (the same step draws the same curriculum).
+    const at::TensorOptions like =
+        grads.empty() ? at::TensorOptions().dtype(at::kFloat) : grads.begin()->second.options();
     ParamMap packet = grads;
     for (const auto& [name, b] : buffers) packet["buffer/" + name] = b;
-    packet["~loss"] = at::scalar_tensor(loss, like.options());
-    packet["~stop"] = at::scalar_tensor(stop ? 1 : 0, like.options());
+    packet["~loss"] = at::scalar_tensor(loss, like);
+    packet["~stop"] = at::scalar_tensor(stop ? 1 : 0, like);
     ParamMap mean = group.average(packet);
     for (auto& [name, g] : grads) g = mean.at(name);
     at::NoGradGuard no_grad;
@@ -224,7 +226,9 @@ class SupervisedStage final : public RunStage {
         LossTerms terms = model_.training_terms(batch.input, batch.gt, model_.parameters(),
                                                 auxiliary_.parameters(), step);
         at::Tensor loss = sum_of(terms);
-        ParamMap grads = gradients(loss, model_.parameters());
+        // Only the parameters this step's loss reaches: a curriculum's frozen levels keep
+        // their weights and Adam moments, as the originals' optimisers over a variable list.
+        ParamMap grads = used_gradients(loss, model_.parameters());
         double loss_value = loss.item<double>();
         if (terms.size() > 1)
             for (const auto& [name, term] : terms) term_sums_[name] += term.item<double>();
