@@ -131,6 +131,27 @@ std::string case_name(const std::string& id) {
 
 std::string noise_tag(double value) { return fmt::format("{:g}", value); }
 
+/// Writes the noisy variants of a case's input into `dir` (input_rel<p>.ply for the relative
+/// protocol, input_abs<σ>.ply for the absolute one), each seeded by the case id and its file
+/// name; returns the case entry's "noisy_inputs": {"rel<p>": file, "abs<σ>": file, ...}.
+nlohmann::json write_noisy_inputs(const fs::path& dir, const at::Tensor& input,
+                                  const DatasetConfig& config, const std::string& id) {
+    nlohmann::json noisy = nlohmann::json::object();
+    for (double p : config.relative_noise) {
+        std::string file = "input_rel" + noise_tag(p) + ".ply";
+        write_point_cloud((dir / file).string(),
+                          {add_relative_noise(input, p, derive_seed(config.seed, id + file))});
+        noisy["rel" + noise_tag(p)] = file;
+    }
+    for (double sigma : config.absolute_noise) {
+        std::string file = "input_abs" + noise_tag(sigma) + ".ply";
+        write_point_cloud((dir / file).string(),
+                          {add_absolute_noise(input, sigma, derive_seed(config.seed, id + file))});
+        noisy["abs" + noise_tag(sigma)] = file;
+    }
+    return noisy;
+}
+
 }  // namespace
 
 TriangleMesh normalize_to_unit_sphere(TriangleMesh mesh, const std::string& what) {
@@ -283,21 +304,7 @@ nlohmann::json make_scan_splits(const DatasetConfig& config, const std::vector<I
                     0, random_subset(gt.size(0), n_in, derive_seed(config.seed, id + "/in/" + rs)));
                 write_point_cloud((dir / layout::kInputFile).string(), {input});
                 write_point_cloud((dir / layout::kGtFile).string(), {gt});
-                nlohmann::json noisy = nlohmann::json::object();
-                for (double p : config.relative_noise) {
-                    std::string file = "input_rel" + noise_tag(p) + ".ply";
-                    write_point_cloud(
-                        (dir / file).string(),
-                        {add_relative_noise(input, p, derive_seed(config.seed, id + file))});
-                    noisy["rel" + noise_tag(p)] = file;
-                }
-                for (double sigma : config.absolute_noise) {
-                    std::string file = "input_abs" + noise_tag(sigma) + ".ply";
-                    write_point_cloud(
-                        (dir / file).string(),
-                        {add_absolute_noise(input, sigma, derive_seed(config.seed, id + file))});
-                    noisy["abs" + noise_tag(sigma)] = file;
-                }
+                nlohmann::json noisy = write_noisy_inputs(dir, input, config, id);
                 nlohmann::json entry = {{"name", job.name},
                                         {"id", id},
                                         {"n_in", n_in},
@@ -430,21 +437,7 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
                     nlohmann::json entry = {{"name", name},    {"id", id},
                                             {"n_in", n_in},    {"n_gt", gt.size(0)},
                                             {"mesh", nullptr}, {"gt_alt", nullptr}};
-                    nlohmann::json noisy = nlohmann::json::object();
-                    for (double p : config.relative_noise) {
-                        std::string file = "input_rel" + noise_tag(p) + ".ply";
-                        write_point_cloud(
-                            (dir / file).string(),
-                            {add_relative_noise(input, p, derive_seed(config.seed, id + file))});
-                        noisy["rel" + noise_tag(p)] = file;
-                    }
-                    for (double s : config.absolute_noise) {
-                        std::string file = "input_abs" + noise_tag(s) + ".ply";
-                        write_point_cloud(
-                            (dir / file).string(),
-                            {add_absolute_noise(input, s, derive_seed(config.seed, id + file))});
-                        noisy["abs" + noise_tag(s)] = file;
-                    }
+                    nlohmann::json noisy = write_noisy_inputs(dir, input, config, id);
                     entry["noisy_inputs"] = noisy;
                     std::lock_guard<std::mutex> lock(cases_mutex);
                     cases[item.split][r].push_back(entry);
@@ -485,21 +478,7 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
                 write_point_cloud((dir / layout::kInputFile).string(), {input.points});
                 write_point_cloud((dir / layout::kGtFile).string(), {gt.points});
                 write_point_cloud((dir / layout::kGtAltFile).string(), {gt_alt.points});
-                nlohmann::json noisy = nlohmann::json::object();
-                for (double p : config.relative_noise) {
-                    std::string file = "input_rel" + noise_tag(p) + ".ply";
-                    write_point_cloud(
-                        (dir / file).string(),
-                        {add_relative_noise(input.points, p, derive_seed(config.seed, id + file))});
-                    noisy["rel" + noise_tag(p)] = file;
-                }
-                for (double s : config.absolute_noise) {
-                    std::string file = "input_abs" + noise_tag(s) + ".ply";
-                    write_point_cloud(
-                        (dir / file).string(),
-                        {add_absolute_noise(input.points, s, derive_seed(config.seed, id + file))});
-                    noisy["abs" + noise_tag(s)] = file;
-                }
+                nlohmann::json noisy = write_noisy_inputs(dir, input.points, config, id);
                 nlohmann::json entry = {{"name", name},
                                         {"id", id},
                                         {"n_in", input.size()},
