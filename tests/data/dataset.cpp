@@ -178,6 +178,11 @@ TEST_F(DatasetTest, SameSeedSameDatasetAndPatchSetRoundTrips) {
     EXPECT_TRUE(c.offsets.equal(a.offsets));
     EXPECT_EQ(c.ratio, 4);
     EXPECT_EQ(c.patch_points, 32);
+    EXPECT_EQ(load_patch_set_for_ratio(again.file("copy.tensors"), 4).num_patches(),
+              a.num_patches());
+    EXPECT_TRUE(test::throws_input_error(
+        [&] { load_patch_set_for_ratio(again.file("copy.tensors"), 8); },
+        {"copy.tensors", "patch set has ratio 4 but the model has ratio 8"}));
 }
 
 TEST(PatchLoader, BatchesAreNormalisedDeterministicAndResumable) {

@@ -38,10 +38,7 @@ void add_diagnose_command(CLI::App& app) {
         const std::string sampler = !args->sampler.empty()
                                         ? args->sampler
                                         : model.extra.value("sampler", std::string("fps"));
-        PatchSet set = load_patch_set(args->data);
-        if (set.ratio != model.backbone->ratio())
-            throw_input_error(args->data, "patch set has ratio {} but the model has ratio {}",
-                              set.ratio, model.backbone->ratio());
+        PatchSet set = load_patch_set_for_ratio(args->data, model.backbone->ratio());
         ValidationSet val =
             make_validation_set(set, args->patches, parse_input_sampler(sampler), args->seed);
         print_json(diagnose_patches(*model.backbone, val));

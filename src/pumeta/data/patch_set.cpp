@@ -74,6 +74,14 @@ PatchSet load_patch_set(const std::string& path) {
     return set;
 }
 
+PatchSet load_patch_set_for_ratio(const std::string& path, int64_t ratio) {
+    PatchSet set = load_patch_set(path);
+    if (set.ratio != ratio)
+        throw_input_error(path, "patch set has ratio {} but the model has ratio {}", set.ratio,
+                          ratio);
+    return set;
+}
+
 InputSampler parse_input_sampler(const std::string& name) {
     if (name == "fps") return InputSampler::kFps;
     if (name == "random") return InputSampler::kRandom;

@@ -31,6 +31,9 @@ struct PatchSet {
 
 void save_patch_set(const std::string& path, const PatchSet& set);
 PatchSet load_patch_set(const std::string& path);
+/// load_patch_set for a model of ratio `ratio`: InputError "<path>: patch set has ratio A but
+/// the model has ratio B" when the set's ratio differs.
+PatchSet load_patch_set_for_ratio(const std::string& path, int64_t ratio);
 
 /// How training inputs are drawn from a GT patch (recorded in every checkpoint's config).
 enum class InputSampler {

@@ -55,18 +55,6 @@ class RunFiles {
     bool writes_;
 };
 
-}  // namespace
-
-namespace {
-
-PatchSet load_for(const std::string& path, const Backbone& model) {
-    PatchSet set = load_patch_set(path);
-    if (set.ratio != model.ratio())
-        throw_input_error(path, "patch set has ratio {} but the model has ratio {}", set.ratio,
-                          model.ratio());
-    return set;
-}
-
 LoaderOptions loader_options(const RunSettings& settings, int64_t batch,
                              const ProcessGroup& group) {
     LoaderOptions loader;
@@ -83,11 +71,11 @@ LoaderOptions loader_options(const RunSettings& settings, int64_t batch,
 
 RunData::RunData(const RunSettings& settings, int64_t batch, int64_t val_count,
                  const Backbone& model, const ProcessGroup& group)
-    : train_set(load_for(settings.train_data, model)),
+    : train_set(load_patch_set_for_ratio(settings.train_data, model.ratio())),
       loader(train_set, loader_options(settings, batch, group)) {
     if (!settings.val_data.empty())
-        val = make_validation_set(load_for(settings.val_data, model), val_count,
-                                  parse_input_sampler(settings.sampler), settings.seed);
+        val = make_validation_set(load_patch_set_for_ratio(settings.val_data, model.ratio()),
+                                  val_count, parse_input_sampler(settings.sampler), settings.seed);
 }
 
 RunLoopOptions loop_options(const RunSettings& settings, const std::string& what,
