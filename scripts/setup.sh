@@ -10,6 +10,8 @@ packages=(
     libopenblas0-openmp
     libnanoflann-dev libcli11-dev nlohmann-json3-dev libspdlog-dev libfmt-dev libeigen3-dev
     libstb-dev libgtest-dev libbenchmark-dev
+    # HDF5 patch files (PU-GAN's and PU1K's training data) and the Python module with its tests.
+    libhdf5-dev pybind11-dev python3-dev python3-numpy python3-pytest
     # The "format" test checks every source against .clang-format.
     clang-format
     # scripts/bench.sh turns benchmark JSON into ratio tables.

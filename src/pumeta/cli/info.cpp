@@ -6,6 +6,7 @@
 #include "pumeta/cli/commands.h"
 #include "pumeta/data/patch_set.h"
 #include "pumeta/inference/model_file.h"
+#include "pumeta/inference/upsample.h"
 
 namespace pumeta::cli {
 
@@ -34,6 +35,13 @@ nlohmann::json geometry_info(const std::string& path, const ReadOptions& read) {
         std::vector<double> lo_v(lo.data_ptr<double>(), lo.data_ptr<double>() + 3);
         std::vector<double> hi_v(hi.data_ptr<double>(), hi.data_ptr<double>() + 3);
         info["bounds"] = {{"min", lo_v}, {"max", hi_v}};
+    }
+    if (!geometry.is_mesh() && geometry.cloud.size() >= 3) {
+        // What `pumeta upsample` decides from: inputs whose nearest-neighbour spacing varies
+        // this much are treated as scans (docs/design.md, "Scans").
+        const double spread = spacing_spread(points);
+        info["spacing_spread"] = spread;
+        info["scan_like"] = spread > kScanSpacingSpread;
     }
     return info;
 }
@@ -99,6 +107,11 @@ void print_text(const nlohmann::json& info) {
                                  lo[0].get<double>(), lo[1].get<double>(), lo[2].get<double>(),
                                  hi[0].get<double>(), hi[1].get<double>(), hi[2].get<double>());
     }
+    if (info.contains("spacing_spread"))
+        std::cout << fmt::format(
+            "  spacing spread (q90/q10 of nearest-neighbour distance): {:.3g}{}\n",
+            info["spacing_spread"].get<double>(),
+            info["scan_like"].get<bool>() ? " (scan-like: upsample keeps the input points)" : "");
 }
 
 }  // namespace

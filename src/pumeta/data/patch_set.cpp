@@ -3,12 +3,15 @@
 #include <ATen/ATen.h>
 #include <torch/serialize.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <numeric>
 #include <optional>
 
 #include "pumeta/core/error.h"
+#include "pumeta/data/hdf5_patches.h"
 #include "pumeta/geometry/sampling.h"
 
 namespace pumeta {
@@ -45,7 +48,15 @@ void save_patch_set(const std::string& path, const PatchSet& set) {
     std::filesystem::rename(tmp, path);
 }
 
-PatchSet load_patch_set(const std::string& path) {
+bool is_hdf5_patch_path(const std::string& path) {
+    std::string extension = std::filesystem::path(path).extension().string();
+    std::transform(extension.begin(), extension.end(), extension.begin(),
+                   [](unsigned char c) { return std::tolower(c); });
+    return extension == ".h5" || extension == ".hdf5";
+}
+
+PatchSet load_patch_set(const std::string& path, const Hdf5PatchKeys& keys) {
+    if (is_hdf5_patch_path(path)) return read_hdf5_patches(path, keys);
     if (!std::filesystem::exists(path)) throw_input_error(path, "file not found");
     torch::serialize::InputArchive archive;
     try {
@@ -74,7 +85,9 @@ PatchSet load_patch_set(const std::string& path) {
     return set;
 }
 
-PatchSet load_patch_set_for_ratio(const std::string& path, int64_t ratio) {
+PatchSet load_patch_set_for_ratio(const std::string& path, int64_t ratio,
+                                  const Hdf5PatchKeys& keys) {
+    if (is_hdf5_patch_path(path)) return read_hdf5_patches(path, keys, ratio);
     PatchSet set = load_patch_set(path);
     if (set.ratio != ratio)
         throw_input_error(path, "patch set has ratio {} but the model has ratio {}", set.ratio,

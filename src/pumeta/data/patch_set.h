@@ -29,11 +29,25 @@ struct PatchSet {
     at::Tensor gt_patch(int64_t s) const;
 };
 
+/// The datasets of an HDF5 patch file (PU-GAN's and PU1K's training data,
+/// data/hdf5_patches.h) that hold the input and the GT patches.
+struct Hdf5PatchKeys {
+    std::string input = "poisson_256";
+    std::string gt = "poisson_1024";
+};
+
+/// Whether `path` is read as an HDF5 patch file: its extension is .h5 or .hdf5 (any case).
+bool is_hdf5_patch_path(const std::string& path);
+
 void save_patch_set(const std::string& path, const PatchSet& set);
-PatchSet load_patch_set(const std::string& path);
+/// A patch set written by save_patch_set, or an HDF5 patch file (is_hdf5_patch_path) read with
+/// `keys` (read_hdf5_patches).
+PatchSet load_patch_set(const std::string& path, const Hdf5PatchKeys& keys = {});
 /// load_patch_set for a model of ratio `ratio`: InputError "<path>: patch set has ratio A but
-/// the model has ratio B" when the set's ratio differs.
-PatchSet load_patch_set_for_ratio(const std::string& path, int64_t ratio);
+/// the model has ratio B" when the set's ratio differs (for an HDF5 file: when its GT patches
+/// do not hold `ratio` times the points of its input patches).
+PatchSet load_patch_set_for_ratio(const std::string& path, int64_t ratio,
+                                  const Hdf5PatchKeys& keys = {});
 
 /// How training inputs are drawn from a GT patch (recorded in every checkpoint's config).
 enum class InputSampler {

@@ -82,6 +82,49 @@ at::Tensor run_external(const std::string& command_template, const at::Tensor& i
 
 }  // namespace
 
+UpsampleResult predict_with_method(const Backbone* model, const at::Tensor& input,
+                                   const at::Tensor& gt, const EvalOptions& options,
+                                   const UpsampleOptions& upsample, const std::string& out_dir,
+                                   const std::string& name) {
+    const int64_t ratio = upsample.ratio;
+    UpsampleResult result;
+    auto start = std::chrono::steady_clock::now();
+    if (options.method == "network") {
+        // The diagnostic upper bound adapts on this case's ground truth (docs/design.md).
+        result = options.oracle && upsample.adaptation.enabled()
+                     ? upsample_with_oracle(*model, input, gt, upsample)
+                     : upsample_cloud(*model, input, upsample);
+    } else if (options.method == "zero-shot") {
+        ZeroShotOptions zero_shot = options.zero_shot;
+        zero_shot.seed = upsample.seed;
+        ZeroShotResult trained = train_zero_shot(model->config(), input, zero_shot);
+        UpsampleOptions plain = upsample;
+        plain.adaptation = Adaptation();
+        result = upsample_cloud(*trained.model, input, plain);
+        result.seconds += trained.seconds;
+        result.tta_seconds = trained.seconds;
+        result.loss_before = trained.loss_first;
+        result.loss_after = trained.loss_last;
+    } else if (options.method == "midpoint") {
+        result.points = midpoint_upsample(input, ratio);
+    } else if (options.method == "external") {
+        if (options.external_command.empty())
+            throw_input_error("eval", "method 'external' needs a command");
+        result.points = run_external(options.external_command, input, ratio,
+                                     fs::path(out_dir) / "external", name);
+    } else if (options.method == "input") {
+        result.points = input;
+    } else if (options.method == "grid-floor") {
+        result.points = grid_floor_output(*model, input, gt, ratio);
+    } else {
+        throw_input_error("--method", "unknown method '{}'", options.method);
+    }
+    if (options.method != "network" && options.method != "zero-shot")
+        result.seconds =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    return result;
+}
+
 nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* model,
                               const EvalOptions& options, const std::string& out_dir) {
     const nlohmann::json index = layout::read_case_index(cases_dir);
@@ -145,46 +188,18 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
         if (has_mesh) mesh = read_mesh((dir / c["mesh"].get<std::string>()).string());
 
         UpsampleResult result;
-        auto start = std::chrono::steady_clock::now();
-        if (options.method == "network") {
-            // The diagnostic upper bound adapts on this case's ground truth (docs/design.md).
-            result = options.oracle && upsample.adaptation.enabled()
-                         ? upsample_with_oracle(*model, input, gt, upsample)
-                         : upsample_cloud(*model, input, upsample);
-        } else if (options.method == "zero-shot") {
-            ZeroShotOptions zero_shot = options.zero_shot;
-            zero_shot.seed = upsample.seed;
-            ZeroShotResult trained = train_zero_shot(model->config(), input, zero_shot);
-            UpsampleOptions plain = upsample;
-            plain.adaptation = Adaptation();
-            result = upsample_cloud(*trained.model, input, plain);
-            result.seconds += trained.seconds;
-            result.tta_seconds = trained.seconds;
-            result.loss_before = trained.loss_first;
-            result.loss_after = trained.loss_last;
-        } else if (options.method == "midpoint") {
-            result.points = midpoint_upsample(input, ratio);
-        } else if (options.method == "external") {
-            if (options.external_command.empty())
-                throw_input_error("eval", "method 'external' needs a command");
-            result.points =
-                run_external(options.external_command, input, ratio, fs::path(out_dir) / "external",
-                             c["name"].get<std::string>());
-        } else if (options.method == "input") {
-            result.points = input;
-        } else if (options.method == "grid-floor") {
-            result.points = grid_floor_output(*model, input, gt, ratio);
-        } else if (options.method == "floor") {
+        if (options.method == "floor") {
             if (c.value("gt_alt", nlohmann::json()).is_null())
                 throw_input_error(dir.string(), "case has no gt_alt.ply for the sampling floor");
+            auto start = std::chrono::steady_clock::now();
             result.points =
                 read_point_cloud((dir / c["gt_alt"].get<std::string>()).string()).points;
-        } else {
-            throw_input_error("--method", "unknown method '{}'", options.method);
-        }
-        if (options.method != "network" && options.method != "zero-shot")
             result.seconds =
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        } else {
+            result = predict_with_method(model, input, gt, options, upsample, out_dir,
+                                         c["name"].get<std::string>());
+        }
         MetricReport m = evaluate(result.points, gt, has_mesh ? &mesh : nullptr);
         // Adaptation time, or the zero-shot model's training time.
         bool trains = options.upsample.adaptation.enabled() || options.method == "zero-shot";

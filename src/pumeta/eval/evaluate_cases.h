@@ -45,6 +45,17 @@ struct EvalOptions {
     bool resume = false;
 };
 
+/// The prediction of options.method (every method but "floor", which needs a case's second GT
+/// sample) for one input at upsample.ratio: input float32 [N,3] -> result.points [~rN,3], with
+/// its seconds (and for "network" and "zero-shot" the adaptation's or training's figures).
+/// `gt` is read by the oracle and "grid-floor" only; `name` names the input in the work files
+/// of "external" (under out_dir/external) and its messages. model may be null unless the
+/// method is "network", "zero-shot" or "grid-floor".
+UpsampleResult predict_with_method(const Backbone* model, const at::Tensor& input,
+                                   const at::Tensor& gt, const EvalOptions& options,
+                                   const UpsampleOptions& upsample, const std::string& out_dir,
+                                   const std::string& name);
+
 /// cases_dir: a cases/<set>/x<r> directory holding cases.json. model may be null unless the
 /// method is "network" or "zero-shot"; it must serve the cases' ratio (options.upsample.ratio
 /// is set to it). Returns the summary (also written to out_dir/summary.json;

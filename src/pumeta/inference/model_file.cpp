@@ -55,6 +55,11 @@ ServedModel serve(const std::string& path, int64_t ratio) {
 
 std::string models_dir() {
     if (const char* dir = std::getenv("PUMETA_MODELS")) return dir;
+    // PUMETA_INSTALLED_MODELS_DIR (set by CMake on this file only) is where `cmake --install`
+    // puts the models: an installed library uses them, a build tree its source tree's.
+    const std::filesystem::path installed = PUMETA_INSTALLED_MODELS_DIR;
+    std::error_code error;
+    if (std::filesystem::exists(installed / "defaults.json", error)) return installed.string();
     return (std::filesystem::path(PUMETA_SOURCE_DIR) / "models").string();
 }
 

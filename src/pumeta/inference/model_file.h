@@ -40,7 +40,9 @@ struct ServedModel {
 /// a power of the model's (applied repeatedly), else an InputError naming both.
 ServedModel serve(const std::string& path, int64_t ratio);
 
-/// The directory of the shipped models: $PUMETA_MODELS if set, else the source tree's models/.
+/// The directory of the shipped models: $PUMETA_MODELS if set, else the installed models
+/// (<install prefix>/share/pumeta/models) when they hold defaults.json, else the source tree's
+/// models/. A library installed elsewhere than its configured prefix needs $PUMETA_MODELS.
 std::string models_dir();
 
 /// The family of the shipped default models: "family" of models_dir()/defaults.json

@@ -1,6 +1,7 @@
 #include "pumeta/train/run_loop.h"
 
 #include <spdlog/spdlog.h>
+#include <sys/resource.h>
 
 #include <chrono>
 #include <cmath>
@@ -26,10 +27,11 @@ class RunFiles {
     RunFiles(Backbone& model, RunStage& stage, const RunLoopOptions& options, bool writes)
         : model_(model), stage_(stage), options_(options), writes_(writes) {}
 
-    void save_state(int64_t step, double best) const {
+    void save_state(int64_t step, double best, double cpu_seconds) const {
         if (!writes_) return;
         ParamMap tensors;
-        nlohmann::json info = {{"step", step}, {options_.best_key, best}};
+        nlohmann::json info = {
+            {"step", step}, {options_.best_key, best}, {"cpu_seconds", cpu_seconds}};
         stage_.save_state(tensors, info);
         info[kRunConfigKey] = options_.config;
         save_training_state(path("state.ckpt"), model_, tensors, info);
@@ -67,15 +69,25 @@ LoaderOptions loader_options(const RunSettings& settings, int64_t batch,
     return loader;
 }
 
+/// CPU time (user + system, every thread) this process has used so far.
+double process_cpu_seconds() {
+    rusage usage{};
+    getrusage(RUSAGE_SELF, &usage);
+    auto seconds = [](const timeval& t) { return t.tv_sec + t.tv_usec * 1e-6; };
+    return seconds(usage.ru_utime) + seconds(usage.ru_stime);
+}
+
 }  // namespace
 
 RunData::RunData(const RunSettings& settings, int64_t batch, int64_t val_count,
                  const Backbone& model, const ProcessGroup& group)
-    : train_set(load_patch_set_for_ratio(settings.train_data, model.ratio())),
+    : train_set(
+          load_patch_set_for_ratio(settings.train_data, model.ratio(), hdf5_patch_keys(settings))),
       loader(train_set, loader_options(settings, batch, group)) {
     if (!settings.val_data.empty())
-        val = make_validation_set(load_patch_set_for_ratio(settings.val_data, model.ratio()),
-                                  val_count, parse_input_sampler(settings.sampler), settings.seed);
+        val = make_validation_set(
+            load_patch_set_for_ratio(settings.val_data, model.ratio(), hdf5_patch_keys(settings)),
+            val_count, parse_input_sampler(settings.sampler), settings.seed);
 }
 
 RunLoopOptions loop_options(const RunSettings& settings, const std::string& what,
@@ -118,6 +130,11 @@ RunLoopResult run_loop(Backbone& model, RunStage& stage, const RunLoopOptions& o
     auto elapsed = [&] {
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     };
+    // Core-seconds of the whole run, carried across resumes: what "trained for N core-hours"
+    // is measured by (the wall clock depends on what else shares the machine).
+    const double cpu_before = resumed_info.is_null() ? 0.0 : resumed_info.value("cpu_seconds", 0.0);
+    const double cpu_start = process_cpu_seconds();
+    auto cpu_seconds = [&] { return cpu_before + process_cpu_seconds() - cpu_start; };
     auto validate = [&] {
         ValidationOutcome outcome = stage.validate(step);
         last = outcome.score;
@@ -130,6 +147,7 @@ RunLoopResult run_loop(Backbone& model, RunStage& stage, const RunLoopOptions& o
         record["step"] = step;
         record["best"] = improved;
         record["seconds"] = elapsed();
+        record["cpu_seconds"] = cpu_seconds();
         files.log(record);
         if (writes)
             spdlog::info("{}: step {} {} (best {:.4e})", options.what, step, outcome.summary, best);
@@ -161,13 +179,14 @@ RunLoopResult run_loop(Backbone& model, RunStage& stage, const RunLoopOptions& o
             record["step"] = step;
             record["seconds"] = seconds;
             record["steps_per_second"] = (step - first_step) / seconds;
+            record["cpu_seconds"] = cpu_seconds();
             files.log(record);
         }
         const bool last_step = step == options.steps;
         if (stage.validates() && (step % options.val_every == 0 || last_step || outcome.stop))
             validate();
         if (step % options.checkpoint_every == 0 || last_step || outcome.stop) {
-            files.save_state(step, best);
+            files.save_state(step, best, cpu_seconds());
             saved_step = step;
         }
         if (outcome.stop) {
@@ -180,7 +199,7 @@ RunLoopResult run_loop(Backbone& model, RunStage& stage, const RunLoopOptions& o
     }
     if (progress) progress->finish();
     // A fresh run that ends before its first step (steps = 0) still leaves its initial model.
-    if (saved_step != step) files.save_state(step, best);
+    if (saved_step != step) files.save_state(step, best, cpu_seconds());
     // Every rank returns only once rank 0's last checkpoint is on disk.
     group.barrier();
     return {step, best, last};

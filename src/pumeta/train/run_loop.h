@@ -41,7 +41,8 @@ struct StepOutcome {
 struct ValidationOutcome {
     /// Lower is better: best.pt holds the model with the lowest score.
     double score = 0;
-    /// Fields of the validation's log.jsonl record ("step", "best" and "seconds" are added).
+    /// Fields of the validation's log.jsonl record ("step", "best", "seconds" and "cpu_seconds"
+    /// are added).
     nlohmann::json fields = nlohmann::json::object();
     /// A one-line summary for the log.
     std::string summary;
@@ -60,7 +61,8 @@ class RunStage {
     virtual StepOutcome step(int64_t step, const std::function<bool()>& wants_stop) = 0;
 
     /// The fields of the training log record for the steps since the last one (the loop adds
-    /// "step", "seconds" and "steps_per_second").
+    /// "step", "seconds", "steps_per_second" and "cpu_seconds": the run's CPU time over all its
+    /// resumes).
     virtual nlohmann::json log_fields() = 0;
 
     /// Whether the run has validation data.

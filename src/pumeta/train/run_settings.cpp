@@ -19,10 +19,14 @@ void check_schedule(const LrSchedule& s, const std::string& context, const char*
     if (s.steps < 1) throw_input_error(context, "'{}' must be >= 1", steps);
 }
 
+Hdf5PatchKeys hdf5_patch_keys(const RunSettings& s) { return {s.data_input_key, s.data_gt_key}; }
+
 void check_run_settings(const RunSettings& s, const std::string& context,
                         const std::string& batch_name, int64_t batch) {
-    for (const auto& [key, value] :
-         {std::pair{"train_data", &s.train_data}, {"run_dir", &s.run_dir}})
+    for (const auto& [key, value] : {std::pair{"train_data", &s.train_data},
+                                     {"run_dir", &s.run_dir},
+                                     {"data_input_key", &s.data_input_key},
+                                     {"data_gt_key", &s.data_gt_key}})
         if (value->empty()) throw_input_error(context, "'{}' is required", key);
     if (s.steps < 0) throw_input_error(context, "'steps' must be >= 0");
     if (s.log_every < 1 || s.val_every < 1 || s.checkpoint_every < 1)

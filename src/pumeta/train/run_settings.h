@@ -5,15 +5,20 @@
 #include <cstdint>
 #include <string>
 
+#include "pumeta/data/patch_set.h"
 #include "pumeta/distributed/process_group.h"
 
 namespace pumeta {
 
 struct RunSettings {
-    /// PatchSet files written by make-dataset (train-x<r>.tensors / val-x<r>.tensors); no
-    /// validation without val_data.
+    /// PatchSet files written by make-dataset (train-x<r>.tensors / val-x<r>.tensors), or
+    /// HDF5 patch files (.h5, PU-GAN's and PU1K's; data/hdf5_patches.h); no validation without
+    /// val_data.
     std::string train_data;
     std::string val_data;
+    /// The datasets of an HDF5 patch file holding the input and the GT patches.
+    std::string data_input_key = Hdf5PatchKeys().input;
+    std::string data_gt_key = Hdf5PatchKeys().gt;
     std::string run_dir;
     int64_t steps = 0;
     /// How inputs are drawn from GT patches: fps, random or nonuniform.
@@ -32,6 +37,8 @@ template <class Self, class Visit>
 void visit_run_settings(Self& s, Visit&& visit) {
     visit("train_data", s.train_data);
     visit("val_data", s.val_data);
+    visit("data_input_key", s.data_input_key);
+    visit("data_gt_key", s.data_gt_key);
     visit("run_dir", s.run_dir);
     visit("steps", s.steps);
     visit("sampler", s.sampler);
@@ -68,8 +75,11 @@ void visit_schedule(Schedule& s, Visit&& visit, const char* lr, const char* rate
 void check_schedule(const LrSchedule& s, const std::string& context, const char* lr,
                     const char* steps);
 
-/// InputError naming `context` unless train_data and run_dir are given, steps and the
-/// cadences are valid, the sampler is known, and `batch` (the field `batch_name`) is at least 1
+/// The HDF5 dataset keys of the settings.
+Hdf5PatchKeys hdf5_patch_keys(const RunSettings& s);
+
+/// InputError naming `context` unless train_data, run_dir and the HDF5 keys are given, steps and
+/// the cadences are valid, the sampler is known, and `batch` (the field `batch_name`) is at least 1
 /// and splits evenly over the processes.
 void check_run_settings(const RunSettings& s, const std::string& context,
                         const std::string& batch_name, int64_t batch);
