@@ -31,6 +31,32 @@ TEST(MetaPu, PaperWidthHasTheOriginalsParameterCount) {
     EXPECT_EQ(generators, 4 * 573504);
 }
 
+TEST(MetaPu, OptimizerGroupsAreTheOriginals) {
+    MetaPu paper(MetaPuOptions{});
+    int64_t fast = 0, slow = 0;
+    for (const auto& [name, p] : paper.parameters()) {
+        const OptimizerGroup group = paper.optimizer_group(name);
+        EXPECT_DOUBLE_EQ(group.weight_decay, 1e-5) << name;
+        const bool generator = name.find(".scale_weights.") != std::string::npos;
+        EXPECT_EQ(metapu_generator_parameter(name), generator) << name;
+        EXPECT_DOUBLE_EQ(group.lr_scale, generator ? 10.0 : 1.0) << name;
+        (generator ? fast : slow) += p.numel();
+    }
+    // 1e-3 for the four generators' 4 × 573,504 values, 1e-4 for the other 727,424.
+    EXPECT_EQ(fast, 4 * 573504);
+    EXPECT_EQ(slow, 3021440 - 4 * 573504);
+
+    nlohmann::json config = metapu_small_config();
+    config["generator_lr_scale"] = 3.0;
+    config["weight_decay"] = 0.0;
+    MetaPu custom(MetaPuOptions::from_json(config));
+    for (const auto& [name, p] : custom.parameters()) {
+        EXPECT_DOUBLE_EQ(custom.optimizer_group(name).weight_decay, 0.0);
+        EXPECT_DOUBLE_EQ(custom.optimizer_group(name).lr_scale,
+                         metapu_generator_parameter(name) ? 3.0 : 1.0);
+    }
+}
+
 TEST(MetaPu, EveryRatioTwoToSixteenGivesFloorNTimesRPoints) {
     MetaPu model = small();
     at::NoGradGuard no_grad;

@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "pumeta/nn/adam.h"
 #include "pumeta/nn/parameters.h"
 
 namespace pumeta {
@@ -114,6 +115,11 @@ class Backbone {
     }
     /// The learning rate of the auxiliary networks' Adam at `step`.
     virtual double auxiliary_lr(int64_t step) const { return 1e-4; }
+
+    /// How supervised training's Adam treats parameter `name` (the original's optimiser
+    /// groups): its learning rate is the schedule's times lr_scale, and weight_decay (L2 on the
+    /// gradient, as torch.optim.Adam) is added. Default: one group, no decay.
+    virtual OptimizerGroup optimizer_group(const std::string& name) const { return {}; }
 
     /// The edge of the grid the outputs lie on, in the patch frame (voxel centres; 0, the
     /// default: continuous outputs). `pumeta eval --method grid-floor` measures what such a

@@ -51,6 +51,8 @@ void visit_fields(Self& o, Visit&& visit) {
     visit("scale_weights_penalty", o.scale_weights_penalty, field::non_negative_number);
     visit("uniform_weight", o.uniform_weight, field::non_negative_number);
     visit("repulsion_weight", o.repulsion_weight, field::non_negative_number);
+    visit("generator_lr_scale", o.generator_lr_scale, field::positive_number);
+    visit("weight_decay", o.weight_decay, field::non_negative_number);
     visit("seed", o.seed, field::seed);
 }
 
@@ -245,6 +247,19 @@ at::Tensor metapu_sparse_input(const at::Tensor& dense, int64_t m, uint64_t seed
         rows.push_back(keep.nonzero().flatten());
     }
     return gather_points(dense, at::stack(rows).to(dense.device()));
+}
+
+bool metapu_generator_parameter(const std::string& name) {
+    for (const char* part : {".fc11.", ".fc12.", ".fcskip."})
+        if (name.find(part) != std::string::npos) return true;
+    return false;
+}
+
+OptimizerGroup MetaPu::optimizer_group(const std::string& name) const {
+    OptimizerGroup group;
+    group.lr_scale = metapu_generator_parameter(name) ? options_.generator_lr_scale : 1.0;
+    group.weight_decay = options_.weight_decay;
+    return group;
 }
 
 MetaPu::MetaPu(const MetaPuOptions& options) : options_(options) {

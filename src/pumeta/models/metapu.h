@@ -50,6 +50,11 @@ struct MetaPuOptions {
     double scale_weights_penalty = 1e-3;
     double uniform_weight = 1e-3;
     double repulsion_weight = 5e-3;
+    /// Supervised training's optimiser groups, as the original's: the weight generators
+    /// (fc11, fc12, fcskip) at generator_lr_scale times the schedule's learning rate (its 1e-3
+    /// against 1e-4 for the convolutions), and weight decay on every tensor.
+    double generator_lr_scale = 10.0;
+    double weight_decay = 1e-5;
     /// Seed of the parameter initialisation.
     uint64_t seed = 0;
 
@@ -74,6 +79,10 @@ double metapu_scale_code(double stage_scale, int64_t candidates);
 /// The training scale of step `step`: one of 1.1, 1.2, ..., max_ratio, drawn uniformly by a
 /// hash of the step (the same for every batch element, as the original draws one per batch).
 double metapu_training_scale(int64_t step, int64_t max_ratio);
+
+/// Whether parameter `name` belongs to a scale-conditioned weight generator (fc11, fc12,
+/// fcskip): the original's "fc" optimiser group.
+bool metapu_generator_parameter(const std::string& name);
 
 /// Meta-PU's input sampler (its data loader): m of the M points of each element of dense
 /// [B,M,3], PU-GAN's non-uniform sampler on the points sorted by distance to a random one
@@ -121,6 +130,8 @@ class MetaPu : public Backbone {
 
     /// metapu_sparse_input(dense, M / ratio(), seed).
     at::Tensor downsample(const at::Tensor& dense, uint64_t seed) const override;
+    /// The weight generators at generator_lr_scale, every tensor with weight_decay.
+    OptimizerGroup optimizer_group(const std::string& name) const override;
 
   private:
     struct Stage {

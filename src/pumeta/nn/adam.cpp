@@ -25,14 +25,23 @@ void Adam::step(const ParamMap& grads) {
         auto it = grads.find(name);
         if (it == grads.end() || !it->second.defined()) continue;
         at::Tensor g = it->second;
-        if (options_.weight_decay != 0) g = g + options_.weight_decay * p;
+        const auto group = groups_.find(name);
+        const double scale = group == groups_.end() ? 1.0 : group->second.lr_scale;
+        const double decay =
+            options_.weight_decay + (group == groups_.end() ? 0.0 : group->second.weight_decay);
+        if (decay != 0) g = g + decay * p;
         at::Tensor& m = m_.at(name);
         at::Tensor& v = v_.at(name);
         m.mul_(options_.beta1).add_(g, 1 - options_.beta1);
         v.mul_(options_.beta2).addcmul_(g, g, 1 - options_.beta2);
         at::Tensor denom = (v / correction2).sqrt_().add_(options_.eps);
-        p.addcdiv_(m, denom, -step_size);
+        p.addcdiv_(m, denom, -step_size * scale);
     }
+}
+
+void Adam::set_group(const std::string& name, const OptimizerGroup& group) {
+    if (!params_.count(name)) throw InternalError("Adam: no parameter '" + name + "'");
+    groups_[name] = group;
 }
 
 void Adam::step() {

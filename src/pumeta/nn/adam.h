@@ -5,7 +5,9 @@
 #include <ATen/core/Tensor.h>
 
 #include <cstdint>
+#include <map>
 #include <nlohmann/json.hpp>
+#include <string>
 
 #include "pumeta/nn/parameters.h"
 
@@ -19,6 +21,13 @@ struct AdamOptions {
     double weight_decay = 0.0;
 };
 
+/// A parameter's treatment by Adam: its learning rate is the optimiser's times lr_scale, and
+/// weight_decay is added to the optimiser's own (L2 on the gradient).
+struct OptimizerGroup {
+    double lr_scale = 1.0;
+    double weight_decay = 0.0;
+};
+
 class Adam {
   public:
     Adam(ParamMap& params, AdamOptions options);
@@ -28,6 +37,10 @@ class Adam {
     void step(const ParamMap& grads);
     /// One update from each parameter's .grad().
     void step();
+
+    /// Puts parameter `name` in `group` (InternalError for an unknown name). Groups are not
+    /// part of state(): whoever builds the optimiser sets them again on resume.
+    void set_group(const std::string& name, const OptimizerGroup& group);
 
     void set_lr(double lr) { options_.lr = lr; }
     double lr() const { return options_.lr; }
@@ -43,6 +56,7 @@ class Adam {
     ParamMap& params_;
     AdamOptions options_;
     ParamMap m_, v_;
+    std::map<std::string, OptimizerGroup> groups_;
     int64_t step_ = 0;
 };
 

@@ -198,6 +198,8 @@ class SupervisedStage final : public RunStage {
           data_(config, config.batch_size, config.val_patches, model, group),
           adam_(model.parameters(), AdamOptions{config.schedule.lr}),
           auxiliary_(model, config.seed) {
+        for (const auto& [name, p] : model.parameters())
+            adam_.set_group(name, model.optimizer_group(name));
         int64_t step = 0;
         if (!opened.info.is_null()) {
             adam_.load_state(backbone_moments(opened.optimizer), opened.info.at("adam"));
