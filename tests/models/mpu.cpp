@@ -274,6 +274,44 @@ TEST(Mpu, CurriculumAddsALevelAloneThenCombinesWithRatiosProportionalToTheirInde
     }
 }
 
+TEST(Mpu, CombinedPhasesAreTheCurriculumsStepsWithoutAFrozenLevel) {
+    std::mt19937_64 rng(1);
+    const int64_t s = 10;
+    for (int64_t step = 0; step < 120; ++step) {
+        const MpuCurriculumStep c = mpu_curriculum(step, s, 4, 2.0, rng);
+        // Combined: past the first stage and no level training alone.
+        EXPECT_EQ(mpu_combined_phase(step, s, 4), step >= s && c.frozen == 0) << step;
+    }
+    EXPECT_FALSE(mpu_combined_phase(15, s, 4));  // level 2 alone
+    EXPECT_TRUE(mpu_combined_phase(25, s, 4));   // levels 1-2 combined
+    EXPECT_TRUE(mpu_combined_phase(1000, s, 4));
+    EXPECT_THROW(mpu_combined_phase(5, 0, 4), InputError);
+}
+
+TEST(Mpu, TrainingHalvesTheLearningRateWhenCombinedAndClipsGradients) {
+    nlohmann::json config = small_config();
+    config["stage_steps"] = 10;
+    const Mpu model = make(config);
+    for (auto [step, factor] : {std::pair<int64_t, double>{5, 1.0},
+                                {15, 1.0},
+                                {25, 0.5},
+                                {35, 1.0},
+                                {45, 0.5},
+                                {95, 0.5}})
+        EXPECT_DOUBLE_EQ(model.learning_rate_factor(step), factor) << step;
+    for (const auto& [name, p] : model.parameters()) {
+        const OptimizerGroup group = model.optimizer_group(name);
+        EXPECT_DOUBLE_EQ(group.gradient_clip, 1.0) << name;
+        EXPECT_DOUBLE_EQ(group.lr_scale, 1.0) << name;
+        EXPECT_DOUBLE_EQ(group.weight_decay, 0.0) << name;
+    }
+    config["combined_lr_factor"] = 1.0;
+    config["gradient_clip"] = 0.0;
+    const Mpu plain = make(config);
+    EXPECT_DOUBLE_EQ(plain.learning_rate_factor(25), 1.0);
+    EXPECT_DOUBLE_EQ(plain.optimizer_group(plain.parameters().begin()->first).gradient_clip, 0.0);
+}
+
 TEST(Mpu, TrainingTermsFreezeEarlierLevelsWhileANewLevelTrainsAlone) {
     nlohmann::json config = small_config(4);
     config["levels"] = 2;

@@ -120,6 +120,9 @@ class Backbone {
     /// groups): its learning rate is the schedule's times lr_scale, and weight_decay (L2 on the
     /// gradient, as torch.optim.Adam) is added. Default: one group, no decay.
     virtual OptimizerGroup optimizer_group(const std::string& name) const { return {}; }
+    /// Supervised training's learning rate at `step` is the schedule's times this (a
+    /// curriculum's phases). Default: 1.
+    virtual double learning_rate_factor(int64_t step) const { return 1.0; }
 
     /// The edge of the grid the outputs lie on, in the patch frame (voxel centres; 0, the
     /// default: continuous outputs). `pumeta eval --method grid-floor` measures what such a

@@ -63,6 +63,8 @@ void visit_fields(Self& o, Visit&& visit) {
     visit("fidelity_weight", o.fidelity_weight, field::positive_number);
     visit("cd_threshold", o.cd_threshold, field::positive_number);
     visit("stage_steps", o.stage_steps, field::positive_int);
+    visit("combined_lr_factor", o.combined_lr_factor, field::positive_number);
+    visit("gradient_clip", o.gradient_clip, field::non_negative_number);
     visit("seed", o.seed, field::seed);
 }
 
@@ -120,6 +122,15 @@ MpuOptions MpuOptions::from_json(const nlohmann::json& config) {
 
 nlohmann::json MpuOptions::to_json() const {
     return write_backbone_config("mpu", [&](auto&& visit) { visit_fields(*this, visit); });
+}
+
+bool mpu_combined_phase(int64_t step, int64_t stage_steps, int64_t max_levels) {
+    if (stage_steps < 1 || max_levels < 1)
+        throw_input_error("mpu_combined_phase", "stage_steps and max_levels must be >= 1");
+    const int64_t s = stage_steps;
+    step = std::max<int64_t>(step, 0);
+    const int64_t newest = std::min(max_levels, 1 + (step + s) / (2 * s));
+    return newest > 1 && step >= s * (2 * newest - 2);
 }
 
 MpuCurriculumStep mpu_curriculum(int64_t step, int64_t stage_steps, int64_t max_levels,
@@ -409,6 +420,18 @@ LossTerms Mpu::training_terms(const at::Tensor& input, const at::Tensor& target,
     }
     auto [pred, cropped] = run_training(input, gt, stage.levels, stage.frozen, rng, params);
     return {{"cd", level_weight(stage.levels) * mpu_chamfer(pred, cropped, stage.threshold)}};
+}
+
+OptimizerGroup Mpu::optimizer_group(const std::string& name) const {
+    OptimizerGroup group;
+    group.gradient_clip = options_.gradient_clip;
+    return group;
+}
+
+double Mpu::learning_rate_factor(int64_t step) const {
+    return mpu_combined_phase(step, options_.stage_steps, active_levels())
+               ? options_.combined_lr_factor
+               : 1.0;
 }
 
 at::Tensor Mpu::downsample(const at::Tensor& dense, uint64_t seed) const {

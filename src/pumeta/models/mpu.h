@@ -52,6 +52,10 @@ struct MpuOptions {
     double cd_threshold = 2.0;
     /// Curriculum stage length S in training steps (the original: 15,000).
     int64_t stage_steps = 15000;
+    /// Supervised training as the original's: the learning rate times this in the combined
+    /// phases (mpu_combined_phase), every gradient value clipped to ±gradient_clip.
+    double combined_lr_factor = 0.5;
+    double gradient_clip = 1.0;
     /// Seed of the parameter initialisation and of the training crops and ratio draws.
     uint64_t seed = 0;
 
@@ -79,6 +83,10 @@ struct MpuCurriculumStep {
 /// else 100.
 MpuCurriculumStep mpu_curriculum(int64_t step, int64_t stage_steps, int64_t max_levels,
                                  double threshold, std::mt19937_64& rng);
+
+/// Whether `step` lies in a "combined" phase of the curriculum: a newest level l >= 2 past its
+/// alone stage, steps [S·(2l − 2), S·(2l − 1)), and every step from S·(2L − 2) on.
+bool mpu_combined_phase(int64_t step, int64_t stage_steps, int64_t max_levels);
 
 /// The original's Chamfer loss with outlier threshold: per sample and direction, squared
 /// nearest-neighbour distances ≥ threshold × their mean count 0; mean fwd + mean bwd, averaged
@@ -138,6 +146,10 @@ class Mpu : public Backbone {
 
     /// downsample_points(dense, M / ratio(), options().downsampler, seed).
     at::Tensor downsample(const at::Tensor& dense, uint64_t seed) const override;
+    /// Every tensor with its gradient clipped to ±gradient_clip.
+    OptimizerGroup optimizer_group(const std::string& name) const override;
+    /// combined_lr_factor in the combined phases, else 1.
+    double learning_rate_factor(int64_t step) const override;
 
   private:
     /// What a level leaves to the next one's skip connection: its input points (in level 1's

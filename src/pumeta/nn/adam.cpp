@@ -25,10 +25,11 @@ void Adam::step(const ParamMap& grads) {
         auto it = grads.find(name);
         if (it == grads.end() || !it->second.defined()) continue;
         at::Tensor g = it->second;
-        const auto group = groups_.find(name);
-        const double scale = group == groups_.end() ? 1.0 : group->second.lr_scale;
-        const double decay =
-            options_.weight_decay + (group == groups_.end() ? 0.0 : group->second.weight_decay);
+        const auto found = groups_.find(name);
+        const OptimizerGroup group = found == groups_.end() ? OptimizerGroup{} : found->second;
+        const double scale = group.lr_scale;
+        const double decay = options_.weight_decay + group.weight_decay;
+        if (group.gradient_clip > 0) g = g.clamp(-group.gradient_clip, group.gradient_clip);
         if (decay != 0) g = g + decay * p;
         at::Tensor& m = m_.at(name);
         at::Tensor& v = v_.at(name);

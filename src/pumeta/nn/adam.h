@@ -21,11 +21,14 @@ struct AdamOptions {
     double weight_decay = 0.0;
 };
 
-/// A parameter's treatment by Adam: its learning rate is the optimiser's times lr_scale, and
-/// weight_decay is added to the optimiser's own (L2 on the gradient).
+/// A parameter's treatment by Adam: its learning rate is the optimiser's times lr_scale,
+/// weight_decay is added to the optimiser's own (L2 on the gradient) and its gradient may be
+/// clipped element-wise.
 struct OptimizerGroup {
     double lr_scale = 1.0;
     double weight_decay = 0.0;
+    /// Each gradient value is clipped to [−gradient_clip, gradient_clip] first; 0: not.
+    double gradient_clip = 0.0;
 };
 
 class Adam {

@@ -221,7 +221,7 @@ class SupervisedStage final : public RunStage {
 
     StepOutcome step(int64_t step, const std::function<bool()>& wants_stop) override {
         Batch batch = data_.loader.next();
-        adam_.set_lr(config_.schedule.at(step));
+        adam_.set_lr(config_.schedule.at(step) * model_.learning_rate_factor(step));
         model_.update_buffers(batch.input, model_.parameters());
         // training_terms: loss_terms unless the backbone trains otherwise (auxiliary networks,
         // a curriculum).
