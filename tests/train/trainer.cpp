@@ -317,10 +317,19 @@ class ToyAdversarial final : public Backbone {
     nlohmann::json config_;
 };
 
+/// Registers ToyAdversarial once per process (the tests may run in one).
+void register_toy_adversarial() {
+    static const bool registered = [] {
+        register_backbone("toy-adversarial", [](const nlohmann::json& config) {
+            return std::make_unique<ToyAdversarial>(config);
+        });
+        return true;
+    }();
+    (void)registered;
+}
+
 TEST(Train, AnAuxiliaryNetworkTrainsWithItsOwnLossAndResumesOutsideTheModel) {
-    register_backbone("toy-adversarial", [](const nlohmann::json& config) {
-        return std::make_unique<ToyAdversarial>(config);
-    });
+    register_toy_adversarial();
     test::TempDir dir;
     TrainConfig config = tiny_config(dir, 4, "straight");
     config.backbone = {{"backbone", "toy-adversarial"}, {"ratio", 4}};
@@ -353,6 +362,23 @@ TEST(Train, AnAuxiliaryNetworkTrainsWithItsOwnLossAndResumesOutsideTheModel) {
         EXPECT_TRUE(at::equal(resumed.optimizer.at(name), state.optimizer.at(name))) << name;
     EXPECT_TRUE(at::equal(param(resumed.model->parameters(), "offset"),
                           param(state.model->parameters(), "offset")));
+}
+
+TEST(Train, TheAuxiliaryLearningRateDecaysWithTheRunsSchedule) {
+    register_toy_adversarial();
+    test::TempDir dir;
+    TrainConfig config = tiny_config(dir, 4, "decayed");
+    config.backbone = {{"backbone", "toy-adversarial"}, {"ratio", 4}};
+    config.steps = 3;
+    config.schedule.lr = 0.01;
+    config.schedule.rate = 0.5;
+    config.schedule.steps = 1;
+    train(config, false);
+    // The last step (index 2) ran at 0.5² of both initial rates: the backbone's 0.01 and the
+    // auxiliary network's 0.01 (ToyAdversarial::auxiliary_lr).
+    TrainingState state = load_training_state(dir.file("decayed/state.ckpt"));
+    EXPECT_DOUBLE_EQ(state.info.at("adam").at("lr").get<double>(), 0.0025);
+    EXPECT_DOUBLE_EQ(state.info.at("aux_adam").at("lr").get<double>(), 0.0025);
 }
 
 }  // namespace

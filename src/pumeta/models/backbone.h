@@ -113,7 +113,9 @@ class Backbone {
                                       int64_t step) const {
         return at::Tensor();
     }
-    /// The learning rate of the auxiliary networks' Adam at `step`.
+    /// The learning rate of the auxiliary networks' Adam at `step`, before the run schedule's
+    /// decay (the trainer multiplies it by the schedule's rate over its initial one, so that
+    /// both optimisers decay together, as PU-GAN's).
     virtual double auxiliary_lr(int64_t step) const { return 1e-4; }
 
     /// How supervised training's Adam treats parameter `name` (the original's optimiser

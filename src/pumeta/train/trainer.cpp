@@ -153,8 +153,11 @@ class Auxiliary {
     }
 
     /// One Adam step on the auxiliary loss of the batch, averaged over the ranks; its value.
-    double step(const Backbone& model, const Batch& batch, int64_t step, ProcessGroup& group) {
-        adam_.set_lr(model.auxiliary_lr(step));
+    /// `decay`: the run schedule's factor at this step (its learning rate over its initial
+    /// one), applied to the backbone's auxiliary rate as the originals decay both optimisers.
+    double step(const Backbone& model, const Batch& batch, int64_t step, double decay,
+                ProcessGroup& group) {
+        adam_.set_lr(model.auxiliary_lr(step) * decay);
         at::Tensor loss =
             model.auxiliary_loss(batch.input, batch.gt, model.parameters(), params_, step);
         ParamMap grads = gradients(loss, params_);
@@ -238,7 +241,8 @@ class SupervisedStage final : public RunStage {
         if (group_.enabled()) all_reduce_step(group_, grads, model_.buffers(), loss_value, stop);
         adam_.step(grads);
         if (!auxiliary_.empty())
-            auxiliary_loss_sum_ += auxiliary_.step(model_, batch, step, group_);
+            auxiliary_loss_sum_ += auxiliary_.step(
+                model_, batch, step, config_.schedule.at(step) / config_.schedule.lr, group_);
         loss_sum_ += loss_value;
         ++loss_count_;
         return {loss_value, stop, fmt::format("loss {:.3e} val {:.3e}", loss_value, last_val_)};
