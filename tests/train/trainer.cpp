@@ -328,13 +328,19 @@ void register_toy_adversarial() {
     (void)registered;
 }
 
-TEST(Train, AnAuxiliaryNetworkTrainsWithItsOwnLossAndResumesOutsideTheModel) {
+/// A run of ToyAdversarial (registered) in `dir/name`: `steps` steps at learning rate 0.01.
+TrainConfig adversarial_config(const test::TempDir& dir, const std::string& name, int64_t steps) {
     register_toy_adversarial();
-    test::TempDir dir;
-    TrainConfig config = tiny_config(dir, 4, "straight");
+    TrainConfig config = tiny_config(dir, 4, name);
     config.backbone = {{"backbone", "toy-adversarial"}, {"ratio", 4}};
-    config.steps = 4;
+    config.steps = steps;
     config.schedule.lr = 0.01;
+    return config;
+}
+
+TEST(Train, AnAuxiliaryNetworkTrainsWithItsOwnLossAndResumesOutsideTheModel) {
+    test::TempDir dir;
+    TrainConfig config = adversarial_config(dir, "straight", 4);
     train(config, false);
     // The log has the adversarial term and the auxiliary loss of every step.
     std::vector<nlohmann::json> lines = loss_lines(dir.file("straight/log.jsonl"));
@@ -365,12 +371,8 @@ TEST(Train, AnAuxiliaryNetworkTrainsWithItsOwnLossAndResumesOutsideTheModel) {
 }
 
 TEST(Train, TheAuxiliaryLearningRateDecaysWithTheRunsSchedule) {
-    register_toy_adversarial();
     test::TempDir dir;
-    TrainConfig config = tiny_config(dir, 4, "decayed");
-    config.backbone = {{"backbone", "toy-adversarial"}, {"ratio", 4}};
-    config.steps = 3;
-    config.schedule.lr = 0.01;
+    TrainConfig config = adversarial_config(dir, "decayed", 3);
     config.schedule.rate = 0.5;
     config.schedule.steps = 1;
     train(config, false);
