@@ -28,6 +28,8 @@ void add_render_command(CLI::App& app);
 void add_contact_sheet_command(CLI::App& app);
 /// Where a model's error on held-out patches comes from (eval/diagnose.h).
 void add_diagnose_command(CLI::App& app);
+/// Paired intervals between two eval runs (eval/compare_runs.h).
+void add_compare_command(CLI::App& app);
 
 /// The largest --ratio any command accepts.
 inline constexpr int64_t kMaxRatio = 256;
