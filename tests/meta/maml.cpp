@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 #include "pumeta/core/error.h"
 #include "pumeta/geometry/sampling.h"
@@ -160,6 +161,14 @@ TEST(Maml, OlderMetaOptionsKeepOnlyThePapersObjectiveAndOptimiser) {
     stored["inner_optimizer"] = "adam";
     EXPECT_TRUE(test::throws_input_error([&] { MetaOptions::from_json(stored); },
                                          {"inner_optimizer", "adam"}));
+}
+
+TEST(Maml, AnInnerLoopDivergesOnANonFiniteLossOrTenfoldGrowth) {
+    EXPECT_FALSE(inner_loop_diverged({0.5, 0.4, 0.3}));
+    EXPECT_FALSE(inner_loop_diverged({0.5, 4.9}));  // below ten times the first
+    EXPECT_TRUE(inner_loop_diverged({0.5, 5.1, 0.4}));
+    EXPECT_TRUE(inner_loop_diverged({0.5, std::nan("")}));
+    EXPECT_TRUE(inner_loop_diverged({0.5, std::numeric_limits<double>::infinity()}));
 }
 
 TEST(Maml, TasksWhoseInnerLoopDivergesAreDroppedAndTheRestAveraged) {

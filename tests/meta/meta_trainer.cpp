@@ -1,12 +1,18 @@
-// The meta-training config. Meta-training itself runs in tests/distributed/data_parallel.cpp
-// (one and two processes) and tests/eval/reproduce.cpp (the CLI end to end).
+// The meta-training config, and validation's treatment of a diverged inner loop. Meta-training
+// itself runs in tests/distributed/data_parallel.cpp (one and two processes) and
+// tests/eval/reproduce.cpp (the CLI end to end).
 #include "pumeta/meta/meta_trainer.h"
 
 #include <gtest/gtest.h>
 
+#include <fstream>
 #include <string>
 
 #include "pumeta/core/error.h"
+#include "pumeta/models/backbone.h"
+#include "pumeta/models/checkpoint.h"
+#include "support/hdf5_files.h"
+#include "support/test_util.h"
 
 namespace pumeta {
 namespace {
@@ -70,6 +76,43 @@ TEST(MetaTrainConfig, MissingUnknownOrMistypedFieldsAreInputErrors) {
     j["distributed"] = {{"world_size", 2}};
     EXPECT_EQ(error_of(j),
               "meta-train config: tasks_per_batch 3 does not split evenly over 2 processes");
+}
+
+// A step size that blows every validation task up: validation scores those tasks unadapted
+// (as test-time adaptation does), says so, and logs finite numbers, instead of scoring
+// whatever NaN weights select.
+TEST(MetaTrainValidation, DivergedTasksAreScoredUnadapted) {
+    test::TempDir dir;
+    const at::Tensor gt = test::sheet(8, 64, 5);
+    const std::string h5 = dir.file("patches.h5");
+    test::write_hdf5(h5,
+                     {{"poisson_16", gt.slice(1, 0, 16).contiguous(), {}}, {"poisson_64", gt, {}}});
+    save_checkpoint(dir.file("init.pt"), *make_backbone(test::tiny_pugcn_config(4, 11)));
+    const nlohmann::json config = {{"init", dir.file("init.pt")},
+                                   {"train_data", h5},
+                                   {"val_data", h5},
+                                   {"data_input_key", "poisson_16"},
+                                   {"data_gt_key", "poisson_64"},
+                                   {"run_dir", dir.file("meta")},
+                                   {"meta", {{"inner_steps", 2}, {"inner_lr", 1e9}}},
+                                   {"tasks_per_batch", 4},
+                                   {"val_tasks", 4},
+                                   {"steps", 0},
+                                   {"log_every", 1}};
+    test::write_file(dir.file("meta.json"), config.dump());
+    auto r = test::run_cli({"--threads", "1", "meta-train", "--config", dir.file("meta.json")});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    EXPECT_NE(r.err.find("adaptation diverged on 4 of 4 tasks"), std::string::npos) << r.err;
+    std::ifstream log(dir.file("meta/log.jsonl"));
+    int validations = 0;
+    for (std::string line; std::getline(log, line);) {
+        nlohmann::json entry = nlohmann::json::parse(line);
+        if (!entry.contains("val_cd_after")) continue;
+        ++validations;
+        EXPECT_EQ(entry["val_cd_after"], entry["val_cd_before"]) << line;
+        EXPECT_EQ(entry["val_inner_after"], entry["val_inner_before"]) << line;
+    }
+    EXPECT_EQ(validations, 1);
 }
 
 }  // namespace

@@ -232,7 +232,7 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
                                  adaptation.step_sizes, /*create_graph=*/false, &losses);
         // A diverged adaptation (as meta-training drops, kDivergedInnerLoss) would return
         // garbage: keep θ and say so.
-        if (!std::isfinite(losses.back()) || losses.back() > kDivergedInnerLoss * losses.front()) {
+        if (inner_loop_diverged(losses)) {
             spdlog::warn(
                 "test-time adaptation diverged (self-supervised loss {} -> {}); using "
                 "the unadapted model; try a smaller --tta-lr",

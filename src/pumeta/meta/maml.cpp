@@ -158,6 +158,12 @@ ParamMap adapt(const Backbone& model, const ParamMap& params, const at::Tensor& 
     return fast;
 }
 
+bool inner_loop_diverged(const std::vector<double>& losses) {
+    return std::any_of(losses.begin(), losses.end(), [&](double v) {
+        return !std::isfinite(v) || v > kDivergedInnerLoss * losses.front();
+    });
+}
+
 MetaStepResult meta_gradient(const Backbone& model, const at::Tensor& x, const at::Tensor& y,
                              const MetaOptions& options, const StepSizes& step_sizes, uint64_t seed,
                              int64_t step) {
@@ -178,10 +184,7 @@ MetaStepResult meta_gradient(const Backbone& model, const at::Tensor& x, const a
         std::vector<double> inner;
         ParamMap fast = adapt(model, theta, x_down, xn, loop, step_sizes,
                               /*create_graph=*/true, &inner);
-        const bool diverged = std::any_of(inner.begin(), inner.end(), [&](double v) {
-            return !std::isfinite(v) || v > kDivergedInnerLoss * inner.front();
-        });
-        if (diverged) {
+        if (inner_loop_diverged(inner)) {
             spdlog::warn("meta step {} task {}: inner loop diverged (loss {}), task dropped", step,
                          n, fmt::join(inner, " -> "));
             ++result.dropped_tasks;

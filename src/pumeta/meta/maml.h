@@ -117,8 +117,14 @@ bool unpack_step_sum(const ParamMap& summed, MetaStepResult& result);
 
 /// An inner loop diverged when a self-supervised loss is not finite or exceeds this factor
 /// times the loss before adaptation (one PU-Dense task in about 60 went 0.135 -> 1,799 -> NaN
-/// in two steps: batch norm over the 2-3 sites of a 32-point patch's coarsest level).
+/// in two steps: on FPS-spread inputs whose 32 voxels are all out of each other's kernel
+/// reach, every finest-level site holds the same features, and batch norm multiplies their
+/// rounding differences by γ/√eps in each layer; docs/design.md).
 constexpr double kDivergedInnerLoss = 10.0;
+
+/// Whether an inner loop's losses (before, after step 1, …) diverged: one is not finite or
+/// exceeds kDivergedInnerLoss times the first.
+bool inner_loop_diverged(const std::vector<double>& losses);
 
 /// One outer iteration's gradient over a batch of tasks x [B,N,3], y [B,rN,3], each task
 /// adapted on its own (Algorithm 1, lines 3-8). Task n's X↓ uses seed + n. A task whose

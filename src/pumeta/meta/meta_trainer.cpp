@@ -56,6 +56,7 @@ AdaptationScore score_adaptation(const Backbone& model, const ValidationSet& val
     int64_t n = val.input.size(0);
     Shard shard = shard_of(n, group.rank(), group.world_size());
     std::vector<at::Tensor> before, after;
+    int64_t diverged = 0;
     for (int64_t i = shard.begin; i < shard.end; ++i) {
         at::Tensor x = val.input.slice(0, i, i + 1);
         at::Tensor x_down = model.downsample(x, seed + static_cast<uint64_t>(i));
@@ -63,12 +64,22 @@ AdaptationScore score_adaptation(const Backbone& model, const ValidationSet& val
         ParamMap adapted =
             adapt(model, model.parameters(), x_down, x, meta.inner_loop(), step_sizes,
                   /*create_graph=*/false, &losses);
+        // As at test time (inference/upsample.cpp): a diverged task keeps θ, instead of
+        // scoring whatever non-finite weights happen to select.
+        if (inner_loop_diverged(losses)) {
+            ++diverged;
+            adapted = model.parameters();
+            losses.back() = losses.front();
+        }
         score.inner_loss_before += losses.front() / n;
         score.inner_loss_after += losses.back() / n;
         at::NoGradGuard no_grad;
         before.push_back(model.upsample(x));
         after.push_back(model.upsample(x, adapted));
     }
+    if (diverged > 0)
+        spdlog::warn("validation: adaptation diverged on {} of {} tasks; scored unadapted",
+                     diverged, shard.size());
     at::Tensor gt = val.gt.slice(0, shard.begin, shard.end);
     double share = static_cast<double>(shard.size()) / n;
     if (shard.size() > 0) {
