@@ -39,16 +39,11 @@ void add_compare_command(CLI::App& app) {
                             {"only_in_method", c.only_in_method},
                             {"metrics", nlohmann::json::object()}};
         for (const MetricComparison& m : c.metrics) {
-            const PairedComparison& p = m.paired;
-            j["metrics"][m.metric] = {{"count", p.count},
-                                      {"mean_base", p.mean_base},
-                                      {"mean_method", p.mean_method},
-                                      {"mean_difference", p.mean_difference},
-                                      {"relative_change", p.relative_change},
-                                      {"ci_low", p.ci_low},
-                                      {"ci_high", p.ci_high},
-                                      {"fraction_improved", p.fraction_improved},
-                                      {"higher_is_better", m.higher_is_better}};
+            nlohmann::json metric = paired_json(m.paired);
+            metric["mean_base"] = m.paired.mean_base;
+            metric["mean_method"] = m.paired.mean_method;
+            metric["higher_is_better"] = m.higher_is_better;
+            j["metrics"][m.metric] = metric;
         }
         print_json(j);
     });

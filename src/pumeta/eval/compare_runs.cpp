@@ -5,9 +5,11 @@
 #include <cmath>
 #include <filesystem>
 #include <map>
+#include <utility>
 
 #include "pumeta/core/error.h"
 #include "pumeta/eval/cases_csv.h"
+#include "pumeta/eval/tables.h"
 
 namespace pumeta {
 namespace {
@@ -20,16 +22,6 @@ CaseScores read_run(const std::string& dir) {
     return read_cases_csv(file);
 }
 
-/// The column's value per case name (cases without the column are absent).
-std::map<std::string, double> by_case(const CaseScores& run, const std::string& column) {
-    std::map<std::string, double> values;
-    auto it = run.scores.find(column);
-    if (it == run.scores.end()) return values;
-    for (size_t i = 0; i < run.cases.size() && i < it->second.size(); ++i)
-        values[run.cases[i]] = it->second[i];
-    return values;
-}
-
 }  // namespace
 
 RunComparison compare_runs(const std::string& base_dir, const std::string& method_dir,
@@ -38,32 +30,33 @@ RunComparison compare_runs(const std::string& base_dir, const std::string& metho
     c.base_dir = base_dir;
     c.method_dir = method_dir;
     CaseScores base = read_run(base_dir), method = read_run(method_dir);
-    std::map<std::string, bool> in_method;
-    for (const std::string& name : method.cases) in_method[name] = true;
-    std::map<std::string, bool> in_base;
-    for (const std::string& name : base.cases) {
-        in_base[name] = true;
-        (in_method.count(name) ? c.shared_cases : c.only_in_base) += 1;
+    std::map<std::string, size_t> method_row;
+    for (size_t i = 0; i < method.cases.size(); ++i) method_row[method.cases[i]] = i;
+    std::vector<std::pair<size_t, size_t>> pairs;  // (base row, method row) of a shared case
+    for (size_t i = 0; i < base.cases.size(); ++i) {
+        auto it = method_row.find(base.cases[i]);
+        if (it == method_row.end())
+            ++c.only_in_base;
+        else
+            pairs.emplace_back(i, it->second);
     }
-    for (const std::string& name : method.cases) c.only_in_method += in_base.count(name) ? 0 : 1;
+    c.shared_cases = static_cast<int64_t>(pairs.size());
+    c.only_in_method = static_cast<int64_t>(method_row.size() - pairs.size());
     if (c.shared_cases == 0)
         throw_input_error(method_dir, "no case in common with {} (different sets or ratios?)",
                           base_dir);
 
-    for (const char* metric : {"cd", "hd", "p2f", "psnr"}) {
-        std::map<std::string, double> b = by_case(base, metric), m = by_case(method, metric);
+    for (const Metric* metric : {&kCd, &kHd, &kP2f, &kPsnr}) {
+        auto b = base.scores.find(metric->column), m = method.scores.find(metric->column);
+        if (b == base.scores.end() || m == method.scores.end()) continue;
         std::vector<double> base_values, method_values;
-        for (const auto& [name, value] : b) {
-            auto other = m.find(name);
-            if (other == m.end()) continue;
-            base_values.push_back(value);
-            method_values.push_back(other->second);
+        for (auto [i, j] : pairs) {
+            base_values.push_back(b->second[i]);
+            method_values.push_back(m->second[j]);
         }
-        MetricComparison mc;
-        mc.metric = metric;
-        mc.higher_is_better = std::string(metric) == "psnr";
-        mc.paired =
-            compare_paired(base_values, method_values, mc.higher_is_better, resamples, seed);
+        MetricComparison mc{
+            metric->column, metric->higher_is_better,
+            compare_paired(base_values, method_values, metric->higher_is_better, resamples, seed)};
         if (mc.paired.count > 0) c.metrics.push_back(mc);
     }
     return c;

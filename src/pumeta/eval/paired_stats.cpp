@@ -51,4 +51,13 @@ PairedComparison compare_paired(const std::vector<double>& base, const std::vect
     return c;
 }
 
+nlohmann::json paired_json(const PairedComparison& c) {
+    return {{"count", c.count},
+            {"mean_difference", c.mean_difference},
+            {"relative_change", c.relative_change},
+            {"ci95", {c.ci_low, c.ci_high}},
+            {"excludes_zero", c.excludes_zero()},
+            {"fraction_improved", c.fraction_improved}};
+}
+
 }  // namespace pumeta

@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <nlohmann/json.hpp>
 #include <vector>
 
 namespace pumeta {
@@ -24,5 +25,9 @@ struct PairedComparison {
 PairedComparison compare_paired(const std::vector<double>& base, const std::vector<double>& method,
                                 bool higher_is_better = false, int64_t resamples = 2000,
                                 uint64_t seed = 1);
+
+/// The comparison as JSON (count, mean_difference, relative_change, ci95, excludes_zero,
+/// fraction_improved): reproduce's tables.json and `pumeta compare --json`.
+nlohmann::json paired_json(const PairedComparison& c);
 
 }  // namespace pumeta

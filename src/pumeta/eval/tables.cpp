@@ -13,19 +13,6 @@ const Metric kP2f{"p2f", "P2F (×10⁻³)", 1e-3, false};
 const Metric kPsnr{"psnr", "PSNR (dB)", 1.0, true};
 const Metric kSeconds{"seconds", "time (ms/object)", 1e-3, false};
 
-namespace {
-
-nlohmann::json comparison_json(const PairedComparison& c) {
-    return {{"count", c.count},
-            {"mean_difference", c.mean_difference},
-            {"relative_change", c.relative_change},
-            {"ci95", {c.ci_low, c.ci_high}},
-            {"excludes_zero", c.excludes_zero()},
-            {"fraction_improved", c.fraction_improved}};
-}
-
-}  // namespace
-
 std::string table_number(double v) {
     if (!std::isfinite(v)) return "—";
     return fmt::format("{:.{}f}", v, std::abs(v) >= 100 ? 1 : 3);
@@ -72,7 +59,7 @@ void TableWriter::group_cells(const std::string& table_id, const std::string& gr
             if (c.count > 0) {
                 cell += fmt::format(" ({:+.1f} %{})", 100 * c.relative_change,
                                     c.excludes_zero() ? "†" : "");
-                json_cell["vs_base"] = comparison_json(c);
+                json_cell["vs_base"] = paired_json(c);
                 details_.push_back(
                     fmt::format("- {}, {}, {}: {} vs its base: n = {}, mean difference {:.4g} "
                                 "(95 % CI [{:.4g}, {:.4g}]), better on {:.0f} % of objects",
