@@ -5,9 +5,11 @@
 // Before the benchmarks, forward + backward is timed against a baseline built from the same
 // batched ATen ops (one gather, one bmm, one index_add_) left to autograd's own backward, as
 // the engine ran under autograd before its backward was written out, and the ratio printed;
-// then, for widths 8 to 128, both product paths (per offset: gather, GEMM, scatter-add;
-// output-major: one gather of every (site, offset) slot and one GEMM) against three dense
-// GEMMs of the same useful FLOPs, the cost of forward + backward without waste.
+// then, for widths 8 to 128 and PU-Dense's narrowing and widening pairs, both product paths
+// (per offset: gather, GEMM, scatter-add; output-major: one gather of every (site, offset) slot
+// and one GEMM, or for outputs of 4, 8 or 16 channels the direct kernels of narrow_product.h)
+// against three dense GEMMs of the same useful FLOPs, the cost of forward + backward without
+// waste.
 #include "pumeta/nn/sparse/sparse_conv.h"
 
 #include <ATen/ATen.h>
@@ -19,6 +21,7 @@
 #include <cmath>
 #include <cstdio>
 #include <random>
+#include <utility>
 
 #include "pumeta/core/allocator.h"
 
@@ -159,27 +162,27 @@ pumeta::KernelMap without_tables(const pumeta::KernelMap& map) {
     return copy;
 }
 
-/// Mean seconds of `runs` dense GEMMs [rows, C] x [C, C] on one thread, after a warm-up.
-double seconds_gemm(int64_t rows, int64_t channels, int runs) {
+/// Mean seconds of `runs` dense GEMMs [rows, Cin] x [Cin, Cout] on one thread, after a warm-up.
+double seconds_gemm(int64_t rows, int64_t in_channels, int64_t out_channels, int runs) {
     at::set_num_threads(1);
-    at::Tensor a = at::randn({rows, channels}), b = at::randn({channels, channels});
+    at::Tensor a = at::randn({rows, in_channels}), b = at::randn({in_channels, out_channels});
     benchmark::DoNotOptimize(a.mm(b));
     auto start = std::chrono::steady_clock::now();
     for (int i = 0; i < runs; ++i) benchmark::DoNotOptimize(a.mm(b));
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() / runs;
 }
 
-/// Forward + backward of a 3³ convolution C -> C on the sphere's sites through both paths,
+/// Forward + backward of a 3³ convolution Cin -> Cout on the sphere's sites through both paths,
 /// against three dense GEMMs of the same useful FLOPs (forward, and the two gradients).
-void compare_paths(int64_t channels) {
+void compare_paths(int64_t in_channels, int64_t out_channels) {
     const Fixture& f = fixture();
     const pumeta::KernelMap& map = *f.sites->conv_map(3, 1);
     const pumeta::KernelMap per_offset = without_tables(map);
     std::mt19937_64 rng(3);
     pumeta::ParamMap params;
-    pumeta::add_sparse_conv(params, "c", channels, channels, 3, /*bias=*/false, rng);
+    pumeta::add_sparse_conv(params, "c", in_channels, out_channels, 3, /*bias=*/false, rng);
     at::manual_seed(4);
-    at::Tensor features = at::randn({f.sites->size(), channels});
+    at::Tensor features = at::randn({f.sites->size(), in_channels});
     auto run = [&](const pumeta::KernelMap& m) {
         at::set_num_threads(1);
         at::Tensor x = features.clone().requires_grad_(true);
@@ -192,14 +195,14 @@ void compare_paths(int64_t channels) {
         for (int i = 0; i < 3; ++i) pass();
         return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count() / 3;
     };
-    const double gemms = 3 * seconds_gemm(map.pairs(), channels, 3);
+    const double gemms = 3 * seconds_gemm(map.pairs(), in_channels, out_channels, 3);
     const double scattered = run(per_offset);
     const double tabled = map.gather_table.defined() ? run(map) : scattered;
     std::printf(
         "3^3 conv %3lld -> %3lld, %lld pairs (%.0f%% of the slots), 1 thread: three dense GEMMs "
         "%6.1f ms; forward + backward per offset %7.1f ms (%.2fx), output-major %7.1f ms "
         "(%.2fx)\n",
-        (long long)channels, (long long)channels, (long long)map.pairs(),
+        (long long)in_channels, (long long)out_channels, (long long)map.pairs(),
         100.0 * double(map.pairs()) / double(map.output_size * map.kernel_volume()), 1e3 * gemms,
         1e3 * scattered, scattered / gemms, 1e3 * tabled, tabled / gemms);
 }
@@ -225,7 +228,10 @@ int main(int argc, char** argv) {
         "3^3 conv 64 -> 64 forward + backward, 1 thread: %.0f ms as ATen ops under autograd, "
         "%.0f ms with the written-out blocked backward (per-offset path): %.2fx\n",
         1e3 * baseline, 1e3 * engine, baseline / engine);
-    for (int64_t channels : {8, 16, 32, 64, 128}) compare_paths(channels);
+    for (int64_t channels : {8, 16, 32, 64, 128}) compare_paths(channels, channels);
+    // PU-Dense's Inception units narrow C -> C/4 and widen C/4 -> C/2 (models/pudense.cpp).
+    for (auto [in, out] : {std::pair<int64_t, int64_t>{32, 8}, {64, 16}, {8, 16}, {16, 32}})
+        compare_paths(in, out);
     benchmark::RunSpecifiedBenchmarks();
     benchmark::Shutdown();
     return 0;

@@ -322,11 +322,13 @@ TEST(SparseConv, OutputMajorAndPerOffsetPathsAgree) {
         KernelMap loop = *map;
         loop.gather_table = loop.scatter_table = at::Tensor();
         loop.batched_offsets = loop.batched_in = loop.batched_out = at::Tensor();
-        for (int64_t channels : {3, 24}) {
+        // Output widths 5 (gather + GEMM) and 8 (the direct narrow kernels).
+        for (auto [channels, width] :
+             {std::pair<int64_t, int64_t>{3, 5}, {24, 5}, {3, 8}, {24, 8}}) {
             at::manual_seed(64);
             at::Tensor x = at::randn({map->input_size, channels}).requires_grad_(true);
-            at::Tensor w = at::randn({map->kernel_volume(), channels, 5}).requires_grad_(true);
-            at::Tensor b = at::randn({5});
+            at::Tensor w = at::randn({map->kernel_volume(), channels, width}).requires_grad_(true);
+            at::Tensor b = at::randn({width});
             at::Tensor tables = apply_kernel_map(x, w, b, *map);
             at::Tensor looped = apply_kernel_map(x, w, b, loop);
             expect_close(tables, looped, 1e-4);

@@ -11,6 +11,7 @@
 #include "pumeta/core/error.h"
 #include "pumeta/core/tensor_checks.h"
 #include "pumeta/nn/init.h"
+#include "pumeta/nn/sparse/narrow_product.h"
 
 namespace pumeta {
 
@@ -139,9 +140,12 @@ int64_t table_block_rows(int64_t volume, int64_t channels) {
 }
 
 /// kernel_map_product through the gather table: per block of output rows, one gather of
-/// every (row, offset) slot and one GEMM with the weight as [K·Cin, Cout]. No scatter.
+/// every (row, offset) slot and one GEMM with the weight as [K·Cin, Cout]. No scatter. Narrow
+/// outputs take the direct kernels instead (narrow_product.h).
 at::Tensor table_product(const at::Tensor& features, const at::Tensor& weight,
                          const at::Tensor& table) {
+    if (narrow_kernels_serve(features.size(1), weight.size(2), features.scalar_type()))
+        return narrow_table_product(features, weight, table);
     at::Tensor x = features.contiguous();
     const int64_t rows = table.size(0), volume = table.size(1), channels = x.size(1);
     at::Tensor w = weight.contiguous().view({volume * channels, weight.size(2)});
@@ -163,6 +167,8 @@ at::Tensor table_product(const at::Tensor& features, const at::Tensor& weight,
 /// slots(features)ᵀ · grad_out, as [K, Cin, Cout].
 at::Tensor table_weight_gradient(const at::Tensor& features, const at::Tensor& grad_out,
                                  const at::Tensor& table) {
+    if (narrow_kernels_serve(features.size(1), grad_out.size(1), features.scalar_type()))
+        return narrow_table_weight_gradient(features, grad_out, table);
     at::Tensor x = features.contiguous(), g = grad_out.contiguous();
     const int64_t rows = table.size(0), volume = table.size(1), channels = x.size(1);
     at::Tensor sum = at::zeros({volume * channels, g.size(1)}, x.options());
