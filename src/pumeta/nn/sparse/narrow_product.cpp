@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cstring>
 #include <string>
+#include <type_traits>
 
 #include "pumeta/core/error.h"
 
@@ -93,6 +94,21 @@ at::Tensor weight_gradient(const at::Tensor& x, const at::Tensor& grad_out,
     return sum.view({volume, cin, Cout});
 }
 
+/// f(std::integral_constant<int, W>()) for the output width W, one of the widths with kernels.
+template <class F>
+at::Tensor with_width(int64_t width, F&& f) {
+    switch (width) {
+        case 4:
+            return f(std::integral_constant<int, 4>());
+        case 8:
+            return f(std::integral_constant<int, 8>());
+        case 16:
+            return f(std::integral_constant<int, 16>());
+    }
+    throw InternalError("narrow sparse product: no kernel for " + std::to_string(width) +
+                        " output channels");
+}
+
 }  // namespace
 
 bool narrow_kernels_serve(int64_t in_channels, int64_t out_channels, at::ScalarType type) {
@@ -105,33 +121,16 @@ bool narrow_kernels_serve(int64_t in_channels, int64_t out_channels, at::ScalarT
 at::Tensor narrow_table_product(const at::Tensor& x, const at::Tensor& weight,
                                 const at::Tensor& table) {
     at::Tensor xc = x.contiguous(), wc = weight.contiguous(), tc = table.contiguous();
-    switch (weight.size(2)) {
-        case 4:
-            return product<4>(xc, wc, tc);
-        case 8:
-            return product<8>(xc, wc, tc);
-        case 16:
-            return product<16>(xc, wc, tc);
-        default:
-            throw InternalError("narrow sparse product: no kernel for " +
-                                std::to_string(weight.size(2)) + " output channels");
-    }
+    return with_width(weight.size(2),
+                      [&](auto width) { return product<decltype(width)::value>(xc, wc, tc); });
 }
 
 at::Tensor narrow_table_weight_gradient(const at::Tensor& x, const at::Tensor& grad_out,
                                         const at::Tensor& table) {
     at::Tensor xc = x.contiguous(), gc = grad_out.contiguous(), tc = table.contiguous();
-    switch (grad_out.size(1)) {
-        case 4:
-            return weight_gradient<4>(xc, gc, tc);
-        case 8:
-            return weight_gradient<8>(xc, gc, tc);
-        case 16:
-            return weight_gradient<16>(xc, gc, tc);
-        default:
-            throw InternalError("narrow sparse product: no kernel for " +
-                                std::to_string(grad_out.size(1)) + " output channels");
-    }
+    return with_width(grad_out.size(1), [&](auto width) {
+        return weight_gradient<decltype(width)::value>(xc, gc, tc);
+    });
 }
 
 }  // namespace pumeta
