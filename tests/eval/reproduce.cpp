@@ -20,6 +20,8 @@
 
 #include "pumeta/core/error.h"
 #include "pumeta/inference/upsample.h"
+#include "pumeta/models/backbone.h"
+#include "pumeta/models/checkpoint.h"
 #include "support/test_util.h"
 
 namespace pumeta {
@@ -112,6 +114,15 @@ TEST_F(ReproduceTest, WritesEveryTableWithCellsEqualToTheEvalSummaries) {
                               "absent: /nonexistent/upsampler is not built") != std::string::npos;
     EXPECT_TRUE(absent_missing);
 
+    // Table VII: no model of this config serves 3×, so only the midpoint baseline, and a note.
+    const nlohmann::json& t7 = tables.at("table7").at("x3");
+    ASSERT_EQ(t7.at("rows").size(), 1u);
+    EXPECT_GE(row(t7, "midpoint baseline")["cells"][0]["count"].get<int64_t>(), 1);
+    bool unserved = false;
+    for (const auto& note : tables.at("missing"))
+        unserved |= note.get<std::string>().find("Table VII, 3×: no model") != std::string::npos;
+    EXPECT_TRUE(unserved);
+
     // Table VI: the zero-shot baseline on the first object of each set, paired with the
     // pretrained backbone on that same object; its run records the training budget.
     const nlohmann::json& zero_shot = row(tables.at("table6"), "PU-GCN zero-shot (from scratch)");
@@ -123,6 +134,41 @@ TEST_F(ReproduceTest, WritesEveryTableWithCellsEqualToTheEvalSummaries) {
     EXPECT_EQ(zs_summary["method"], "zero-shot");
     EXPECT_EQ(zs_summary["zero_shot"]["steps"], 3);
     EXPECT_GT(zs_summary["zero_shot"]["training_seconds"]["mean"].get<double>(), 0);
+}
+
+TEST_F(ReproduceTest, TableSevenHasTheModelsThatServeItsRatioPairedWithTheMidpoint) {
+    // One Meta-PU file serves 3× (scale-conditioned weights); PU-GCN's 4× model does not.
+    fs::path models = dir_->path() / "models-any-ratio";
+    fs::create_directories(models);
+    fs::copy_file(dir_->path() / "models" / "pugcn-x4.pt", models / "pugcn-x4.pt",
+                  fs::copy_options::overwrite_existing);
+    save_checkpoint((models / "metapu.pt").string(),
+                    *make_backbone(small_backbone_config("metapu")));
+    nlohmann::json j = *config_;
+    j["models_dir"] = models.string();
+    j["backbones"] = {"pugcn", "metapu"};
+    j["backbone_labels"]["metapu"] = "Meta-PU";
+    j["noise"] = nlohmann::json::array();
+    j["sweep_backbones"] = nlohmann::json::array();
+    j["zero_shot"]["max_cases"] = 0;
+    fs::path out = dir_->path() / "any-ratio";
+    nlohmann::json tables = reproduce(ReproduceConfig::from_json(j, "quick"), out.string(), "test");
+
+    const nlohmann::json& t7 = tables.at("table7").at("x3");
+    EXPECT_EQ(t7.at("rows").size(), 2u);  // the midpoint and Meta-PU
+    const nlohmann::json& metapu = row(t7, "Meta-PU");
+    nlohmann::json summary = read_json(out / "runs/test-indist-x3/metapu/summary.json");
+    EXPECT_EQ(summary["ratio"], 3);
+    const double cd = summary["cd"]["mean"].get<double>();
+    EXPECT_NEAR(metapu["cells"][0]["mean"].get<double>(), cd, 1e-8 * cd);
+    // Paired with the midpoint baseline on the same objects.
+    nlohmann::json midpoint = read_json(out / "runs/test-indist-x3/midpoint/summary.json");
+    ASSERT_TRUE(metapu["cells"][0].contains("vs_base"));
+    EXPECT_EQ(metapu["cells"][0]["vs_base"]["count"], summary["count"]);
+    EXPECT_NEAR(metapu["cells"][0]["vs_base"]["mean_difference"].get<double>(),
+                cd - midpoint["cd"]["mean"].get<double>(), 1e-6 * cd);
+    EXPECT_NE(test::read_file((out / "tables.md").string()).find("## Table VII, 3×"),
+              std::string::npos);
 }
 
 TEST_F(ReproduceTest, ASecondRunReusesUnchangedEvaluationsAndRedoesChangedModels) {

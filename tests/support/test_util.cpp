@@ -164,7 +164,7 @@ nlohmann::json make_tiny_reproduction(const fs::path& dir) {
     make_raw_tree(dir / "raw");
     DatasetConfig data;
     data.raw_dir = (dir / "raw").string();
-    data.ratios = {4};
+    data.ratios = {4, 3};  // 3x: Table VII
     data.input_points = 128;
     data.patch_points = 32;
     data.patches_per_mesh = 2;
@@ -185,6 +185,7 @@ nlohmann::json make_tiny_reproduction(const fs::path& dir) {
               {{"label", "absent"}, {"command", "/nonexistent/upsampler {input} {output}"}}}},
             {"main_ratio", 4},
             {"table3_ratios", {4, 16}},
+            {"any_ratios", {3}},
             {"sets", {"test-indist", "test-scans"}},
             {"noise", {"rel1"}},
             {"tta_steps", 2},

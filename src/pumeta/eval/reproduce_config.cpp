@@ -73,6 +73,7 @@ void reproduce_fields(Self& c, Visit&& visit) {
     visit("external_baselines", c.external_baselines);
     visit("main_ratio", c.main_ratio);
     visit("table3_ratios", c.table3_ratios);
+    visit("any_ratios", c.any_ratios);
     visit("sets", c.sets);
     visit("noise", c.noise);
     visit("noise_backbones", c.noise_backbones);

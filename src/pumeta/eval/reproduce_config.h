@@ -58,6 +58,9 @@ struct ReproduceConfig {
     int64_t main_ratio = 8;
     /// Ratios of Table III (the paper's 4× and 16×).
     std::vector<int64_t> table3_ratios = {4, 16};
+    /// Ratios of Table VII, served only by backbones whose one model takes any ratio
+    /// (Meta-PU, PU-Dense's voxel ranking); empty = no Table VII.
+    std::vector<int64_t> any_ratios = {3, 5, 6, 12};
     /// Test sets (layout::kTestSets), the column groups of Tables I, IV and VI; the first is
     /// the set of Tables II, III and V.
     std::vector<std::string> sets{layout::kTestSets.begin(), layout::kTestSets.end()};

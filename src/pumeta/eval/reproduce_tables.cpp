@@ -345,4 +345,35 @@ void write_table6(TablePass& pass) {
     pass.writer.table("Table VI", config.sets, {kCd, kPsnr, kSeconds}, rows, pass.tables["table6"]);
 }
 
+void write_table7(TablePass& pass) {
+    const ReproduceConfig& config = pass.config;
+    for (int64_t ratio : config.any_ratios) {
+        pass.md() << "## Table VII, " << ratio << "×: a ratio only any-ratio models serve\n\n"
+                  << "The plain models whose one file serves " << ratio
+                  << "× (Meta-PU's scale-conditioned weights; PU-Dense keeps the rN likeliest "
+                     "voxels); each is compared with the midpoint baseline on the same objects. "
+                     "No adaptation here (Table III has \"ours\" at other ratios).\n\n";
+        std::vector<TableWriter::Row> rows;
+        TableWriter::Row midpoint{"midpoint baseline",
+                                  pass.per_set([&](const std::string& set) {
+                                      return &pass.cells.get(pass.spec(set, ratio, "midpoint"));
+                                  }),
+                                  {}};
+        rows.push_back(midpoint);
+        for (const std::string& backbone : config.backbones) {
+            const std::optional<std::string> plain = pass.models.find(backbone, ratio, false);
+            if (!plain) continue;
+            rows.push_back({config.label_of(backbone), pass.per_set([&](const std::string& set) {
+                                return pass.network(set, ratio, *plain, 0);
+                            }),
+                            midpoint.runs});
+        }
+        if (rows.size() == 1)
+            pass.notes.push_back(
+                fmt::format("Table VII, {}×: no model in {} serves it", ratio, config.models_dir));
+        pass.writer.table(fmt::format("Table VII, {}×", ratio), config.sets, {kCd, kHd, kPsnr},
+                          rows, pass.tables["table7"][fmt::format("x{}", ratio)]);
+    }
+}
+
 }  // namespace pumeta

@@ -61,5 +61,7 @@ void write_table4(TablePass& pass);
 void write_table5(TablePass& pass);
 /// Table VI (beyond the paper): zero-shot internal learning vs external pretraining.
 void write_table6(TablePass& pass);
+/// Table VII (beyond the paper): ratios only any-ratio models serve, on every test set.
+void write_table7(TablePass& pass);
 
 }  // namespace pumeta
