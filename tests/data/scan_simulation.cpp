@@ -146,6 +146,71 @@ TEST(ScanSimulation, FarReturnsAreSparserThanNearOnes) {
     EXPECT_GT(far_median, 3 * near_median) << near_median << " vs " << far_median;
 }
 
+TEST(ScanSimulation, AnAerialSensorSweepsTheGroundInLinesAlongItsTrack) {
+    SceneOptions options;
+    options.walls = 0;
+    ScanScene scene = build_scan_scene({}, 1, options);  // the ground alone
+    ScanSensor sensor = exact(scan_sensor("aerial"));
+    EXPECT_EQ(sensor.kind, "aerial");
+    // ±5° every 0.08°: 126 rays a fan; 0.5 m lines over 70 m: 141 fans.
+    ASSERT_EQ(sensor_directions(sensor).size(0), 126 * 141);
+    const double origin[3] = {3, -2, sensor.height};
+    at::Tensor origins = sensor_origins(sensor, origin);
+    ASSERT_EQ(origins.sizes(), sensor_directions(sensor).sizes());
+    EXPECT_DOUBLE_EQ(origins[0][0].item<double>(), 3 - 35.0);
+    EXPECT_DOUBLE_EQ(origins[-1][0].item<double>(), 3 + 35.0);
+    EXPECT_TRUE(at::all(origins.select(1, 1) == -2).item<bool>());
+    EXPECT_TRUE(at::all(origins.select(1, 2) == sensor.height).item<bool>());
+
+    Scan scan = simulate_scan(TriangleBvh(scene.mesh), sensor, origin, 4);
+    ASSERT_EQ(scan.points.size(0), 126 * 141);
+    EXPECT_NEAR(scan.points.select(1, 2).abs().max().item<float>(), 0.0f, 1e-3f);
+    // The swath: x over the track, y within ±400 tan 5° of it; ranges from 400 (nadir) to
+    // 400 / cos 5°.
+    EXPECT_NEAR(scan.points.select(1, 0).min().item<float>(), -32.0f, 1e-3f);
+    EXPECT_NEAR(scan.points.select(1, 0).max().item<float>(), 38.0f, 1e-3f);
+    const double half_swath = 400 * std::tan(5 * kDegree);
+    EXPECT_NEAR(scan.points.select(1, 1).max().item<float>(), -2 + half_swath, 1e-2);
+    EXPECT_NEAR(scan.points.select(1, 1).min().item<float>(), -2 - half_swath, 1e-2);
+    EXPECT_NEAR(scan.ranges.min().item<double>(), 400.0, 0.01);
+    EXPECT_NEAR(scan.ranges.max().item<double>(), 400 / std::cos(5 * kDegree), 1e-6);
+    // Even spacing: about 0.5 m along the track and 0.56 m across it.
+    KnnResult nn = knn(scan.points, scan.points, 2);
+    const double spacing = nn.sq_distances.select(1, 1).sqrt().median().item<double>();
+    EXPECT_NEAR(spacing, 0.5, 0.01);
+}
+
+TEST(ScanScene, AnAerialSceneHasBuildingsAndLargerObjectsNearTheTrack) {
+    std::vector<std::pair<std::string, TriangleMesh>> objects;
+    for (uint64_t s = 0; s < 6; ++s)
+        objects.push_back({"shape" + std::to_string(s), generate_shape(s + 40)});
+    const SceneOptions options = scene_options_for(scan_sensor("aerial"));
+    ScanScene scene = build_scan_scene(objects, 2, options);
+    int64_t buildings = 0;
+    for (const auto& e : scene.elements) {
+        if (e["kind"] == "wall") {
+            ++buildings;
+            EXPECT_GE(e["size"][1].get<double>(), 5.0);
+            EXPECT_LE(e["size"][1].get<double>(), 12.0);
+        } else if (e["kind"] == "object") {
+            EXPECT_GE(e["size"].get<double>(), 2.0);
+            EXPECT_LE(e["size"].get<double>(), 10.0);
+            EXPECT_LE(e["distance"].get<double>(), 32.0);
+        }
+    }
+    EXPECT_GE(buildings, 3);
+    // A flight over it sees roofs: returns well above the ground.
+    ScanSensor sensor = scan_sensor("aerial");
+    const double origin[3] = {0, 0, sensor.height};
+    Scan scan = simulate_scan(TriangleBvh(scene.mesh), sensor, origin, 1);
+    at::Tensor high = scan.points.select(1, 2) > 2.0f;
+    EXPECT_GT(high.sum().item<int64_t>(), scan.points.size(0) / 20);
+    // The spinning and terrestrial sensors keep the default layout.
+    EXPECT_EQ(scene_options_for(scan_sensor("lidar32")).walls, SceneOptions().walls);
+    EXPECT_EQ(scene_options_for(scan_sensor("terrestrial")).wall_max_thickness,
+              SceneOptions().wall_max_thickness);
+}
+
 TEST(ScanScene, ObjectsStandOnTheGroundApartAtTheirSizesAndDistances) {
     std::vector<std::pair<std::string, TriangleMesh>> objects;
     for (uint64_t s = 0; s < 8; ++s)

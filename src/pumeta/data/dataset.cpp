@@ -276,8 +276,8 @@ nlohmann::json make_scan_splits(const DatasetConfig& config, const std::vector<I
                     }
                 }
             }
-            ScanScene scene =
-                build_scan_scene(objects, derive_seed(config.scan_seed, id + "/layout"));
+            ScanScene scene = build_scan_scene(
+                objects, derive_seed(config.scan_seed, id + "/layout"), scene_options_for(sensor));
             const double origin[3] = {0, 0, sensor.height};
             Scan sweep = simulate_scan(TriangleBvh(scene.mesh), sensor, origin,
                                        derive_seed(config.scan_seed, id + "/sweep"));

@@ -48,7 +48,11 @@ nlohmann::json ScanSensor::to_json() const {
                         {"max_range", max_range},
                         {"range_sigma", range_sigma},
                         {"dropout", dropout}};
-    if (kind == "spinning") {
+    if (kind == "aerial") {
+        j["scan_half_angle_deg"] = scan_half_angle_deg;
+        j["line_spacing"] = line_spacing;
+        j["track_length"] = track_length;
+    } else if (kind == "spinning") {
         j["beams"] = beam_elevations_deg.size();
         j["elevation_max_deg"] =
             *std::max_element(beam_elevations_deg.begin(), beam_elevations_deg.end());
@@ -62,7 +66,8 @@ nlohmann::json ScanSensor::to_json() const {
 }
 
 const std::vector<std::string>& scan_sensor_names() {
-    static const std::vector<std::string> names = {"lidar16", "lidar32", "lidar64", "terrestrial"};
+    static const std::vector<std::string> names = {"lidar16", "lidar32", "lidar64", "terrestrial",
+                                                   "aerial"};
     return names;
 }
 
@@ -87,18 +92,64 @@ ScanSensor scan_sensor(const std::string& name) {
         s.max_range = 100;
         s.range_sigma = 0.005;
         s.dropout = 0.01;
+    } else if (name == "aerial") {
+        s.kind = "aerial";
+        s.height = 400;
+        s.scan_half_angle_deg = 5;
+        s.azimuth_step_deg = 0.08;
+        s.line_spacing = 0.5;
+        s.track_length = 70;
+        s.min_range = 1;
+        s.max_range = 1000;
+        s.range_sigma = 0.05;
+        s.dropout = 0.02;
     } else {
         throw_input_error("scan sensor",
                           "unknown sensor '{}' (lidar16, lidar32, lidar64, "
-                          "terrestrial)",
+                          "terrestrial, aerial)",
                           name);
     }
     return s;
 }
 
+namespace {
+
+/// The aerial fan's across-track angles (radians) and the number of lines.
+std::pair<std::vector<double>, int64_t> aerial_pattern(const ScanSensor& sensor) {
+    if (!(sensor.scan_half_angle_deg > 0 && sensor.scan_half_angle_deg < 90) ||
+        !(sensor.line_spacing > 0) || !(sensor.track_length >= 0))
+        throw_input_error("scan sensor",
+                          "an aerial sensor needs 0 < scan_half_angle_deg < 90, line_spacing > "
+                          "0 and track_length >= 0");
+    const int64_t rays = 1 + static_cast<int64_t>(std::floor(
+                                 2 * sensor.scan_half_angle_deg / sensor.azimuth_step_deg + 1e-9));
+    std::vector<double> angles(rays);
+    for (int64_t i = 0; i < rays; ++i)
+        angles[i] = (-sensor.scan_half_angle_deg + i * sensor.azimuth_step_deg) * kDegree;
+    const int64_t lines =
+        1 + static_cast<int64_t>(std::floor(sensor.track_length / sensor.line_spacing + 1e-9));
+    return {angles, lines};
+}
+
+}  // namespace
+
 at::Tensor sensor_directions(const ScanSensor& sensor) {
     if (!(sensor.azimuth_step_deg > 0))
         throw_input_error("scan sensor", "azimuth_step_deg must be positive");
+    if (sensor.kind == "aerial") {
+        auto [angles, lines] = aerial_pattern(sensor);
+        const int64_t fan = static_cast<int64_t>(angles.size());
+        at::Tensor directions = at::empty({lines * fan, 3}, at::kDouble);
+        double* d = directions.data_ptr<double>();
+        for (int64_t l = 0; l < lines; ++l)
+            for (int64_t i = 0; i < fan; ++i) {
+                double* row = d + 3 * (l * fan + i);
+                row[0] = 0;
+                row[1] = std::sin(angles[i]);
+                row[2] = -std::cos(angles[i]);
+            }
+        return directions;
+    }
     std::vector<double> elevations = sensor.beam_elevations_deg;
     if (sensor.kind == "terrestrial") {
         if (!(sensor.elevation_step_deg > 0) || sensor.elevation_min_deg >= 90)
@@ -131,15 +182,45 @@ at::Tensor sensor_directions(const ScanSensor& sensor) {
     return directions;
 }
 
+at::Tensor sensor_origins(const ScanSensor& sensor, const double origin[3]) {
+    at::Tensor position = at::tensor({origin[0], origin[1], origin[2]}, at::kDouble).view({1, 3});
+    if (sensor.kind != "aerial")
+        return position.expand({sensor_directions(sensor).size(0), 3}).contiguous();
+    auto [angles, lines] = aerial_pattern(sensor);
+    const int64_t fan = static_cast<int64_t>(angles.size());
+    at::Tensor origins = position.repeat({lines * fan, 1});
+    double* o = origins.data_ptr<double>();
+    for (int64_t l = 0; l < lines; ++l)
+        for (int64_t i = 0; i < fan; ++i)
+            o[3 * (l * fan + i)] += -0.5 * sensor.track_length + l * sensor.line_spacing;
+    return origins;
+}
+
+SceneOptions scene_options_for(const ScanSensor& sensor) {
+    SceneOptions options;
+    if (sensor.kind == "aerial") {
+        options.min_distance = 2;
+        options.max_distance = 32;
+        options.min_size = 2;
+        options.max_size = 10;
+        options.walls = 6;
+        options.wall_min_thickness = 5;
+        options.wall_max_thickness = 12;
+        options.wall_min_distance = 6;
+        options.wall_clearance = 0;
+    }
+    return options;
+}
+
 Scan simulate_scan(const TriangleBvh& scene, const ScanSensor& sensor, const double origin[3],
                    uint64_t seed) {
     at::Tensor directions = sensor_directions(sensor);
+    at::Tensor origins = sensor_origins(sensor, origin);
     const int64_t rays = directions.size(0);
-    at::Tensor hits = scene.first_hits(
-        at::tensor({origin[0], origin[1], origin[2]}, at::kDouble).view({1, 3}).expand({rays, 3}),
-        directions, sensor.max_range);
+    at::Tensor hits = scene.first_hits(origins, directions, sensor.max_range);
     const double* t = hits.data_ptr<double>();
     const double* d = directions.data_ptr<double>();
+    const double* o = origins.data_ptr<double>();
     const uint64_t dropout_key = derive_seed(seed, "dropout");
     const uint64_t noise_key = derive_seed(seed, "noise");
 
@@ -162,7 +243,7 @@ Scan simulate_scan(const TriangleBvh& scene, const ScanSensor& sensor, const dou
                               std::cos(2 * kPi * unit_uniform(key ^ mix(2 * ray + 1)));
         const double range = t[i] + sensor.range_sigma * normal;
         for (int k = 0; k < 3; ++k)
-            points.push_back(static_cast<float>(origin[k] + range * d[3 * i + k]));
+            points.push_back(static_cast<float>(o[3 * i + k] + range * d[3 * i + k]));
         ranges.push_back(range);
         index.push_back(i);
     }
@@ -253,33 +334,41 @@ ScanScene build_scan_scene(const std::vector<std::pair<std::string, TriangleMesh
          at::tensor({0, 1, 2, 0, 2, 3}, at::kLong).view({2, 3})});
     scene.elements.push_back({{"name", "ground"}, {"kind", "ground"}, {"half_size", g}});
 
-    constexpr double kWallThickness = 0.3;
     std::vector<Segment> walls;
+    std::vector<double> wall_thickness;
     for (int64_t w = 0; w < options.walls; ++w) {
         for (int attempt = 0; attempt < 100; ++attempt) {
             const double length = uniform(4, 20), height = uniform(2.5, 8);
+            const double thickness =
+                options.wall_max_thickness > options.wall_min_thickness
+                    ? uniform(options.wall_min_thickness, options.wall_max_thickness)
+                    : options.wall_min_thickness;
+            const double near = options.wall_min_distance;
             const double distance =
-                uniform(std::min(10.0, options.max_distance), std::max(10.0, options.max_distance));
+                uniform(std::min(near, options.max_distance), std::max(near, options.max_distance));
             const double azimuth = uniform(0, 2 * kPi);
             const double yaw = azimuth + kPi / 2 + uniform(-kPi / 6, kPi / 6);
             const double cx = distance * std::cos(azimuth), cy = distance * std::sin(azimuth);
             const double hx = 0.5 * length * std::cos(yaw), hy = 0.5 * length * std::sin(yaw);
             Segment segment{cx - hx, cy - hy, cx + hx, cy + hy};
-            if (point_segment_distance(0, 0, segment) < 5) continue;
+            if (point_segment_distance(0, 0, segment) < options.wall_clearance) continue;
             bool clear = true;
-            for (const Segment& other : walls)
-                if (segment_distance(segment, other) < 1) clear = false;
+            for (size_t w2 = 0; w2 < walls.size(); ++w2)
+                if (segment_distance(segment, walls[w2]) <
+                    std::max(1.0, 0.5 * (thickness + wall_thickness[w2]) + 0.5))
+                    clear = false;
             if (!clear) continue;
             walls.push_back(segment);
-            const double lo[3] = {-0.5 * length, -0.5 * kWallThickness, 0};
-            const double hi[3] = {0.5 * length, 0.5 * kWallThickness, height};
+            wall_thickness.push_back(thickness);
+            const double lo[3] = {-0.5 * length, -0.5 * thickness, 0};
+            const double hi[3] = {0.5 * length, 0.5 * thickness, height};
             TriangleMesh box = box_mesh(lo, hi);
             box.vertices = yaw_and_move(box.vertices, yaw, cx, cy, 0);
             parts.push_back(box);
             scene.elements.push_back({{"name", "wall"},
                                       {"kind", "wall"},
                                       {"position", {cx, cy, 0.0}},
-                                      {"size", {length, kWallThickness, height}},
+                                      {"size", {length, thickness, height}},
                                       {"yaw_deg", yaw / kDegree}});
             break;
         }
@@ -316,8 +405,8 @@ ScanScene build_scan_scene(const std::vector<std::pair<std::string, TriangleMesh
             for (const Footprint& other : placed)
                 if (std::hypot(x - other.x, y - other.y) < radius + other.radius + 0.2)
                     clear = false;
-            for (const Segment& wall : walls)
-                if (point_segment_distance(x, y, wall) < radius + 0.5 * kWallThickness + 0.2)
+            for (size_t w = 0; w < walls.size(); ++w)
+                if (point_segment_distance(x, y, walls[w]) < radius + 0.5 * wall_thickness[w] + 0.2)
                     clear = false;
             if (!clear) continue;
             placed.push_back({x, y, radius});
