@@ -157,6 +157,15 @@ TEST(Cli, InfoJsonAndSample) {
         {"sample", dir.file("cube.off"), "-n", "500", "--seed", "3", "-o", dir.file("s.ply")});
     ASSERT_EQ(sample.exit_code, 0) << sample.err;
     EXPECT_EQ(read_point_cloud(dir.file("s.ply")).size(), 500);
+    // What upsample takes a cloud for: an even sample of the cube's surface.
+    auto cloud_info = test::run_cli({"info", dir.file("s.ply"), "--json"});
+    ASSERT_EQ(cloud_info.exit_code, 0) << cloud_info.err;
+    auto c = nlohmann::json::parse(cloud_info.out);
+    EXPECT_EQ(c["input_kind"], "sampled");
+    EXPECT_GT(c["spacing_spread"].get<double>(), 1.0);
+    EXPECT_GE(c["surface_thickness"].get<double>(), 0.0);
+    auto text = test::run_cli({"info", dir.file("s.ply")});
+    EXPECT_NE(text.out.find("taken for: sampled"), std::string::npos) << text.out;
     // More points than a tiny cloud has is a clear error, not a crash.
     auto too_many =
         test::run_cli({"sample", dir.file("cube.off"), "-n", "0", "-o", dir.file("t.ply")});

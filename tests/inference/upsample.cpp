@@ -215,6 +215,41 @@ TEST(UpsampleCloud, SpacingSpreadSeparatesEvenSamplesFromScans) {
     EXPECT_EQ(spacing_spread(at::zeros({5, 3})), 1.0);  // all coincident
 }
 
+/// A random 1/4 of an airborne-like sweep: a 120 x 120 grid of spacing 0.5 on the plane z = 0
+/// with a block (a raised roof) and Gaussian height noise `sigma`.
+at::Tensor gridded_returns(double sigma, uint64_t seed) {
+    at::Generator gen = at::detail::createCPUGenerator(seed);
+    at::Tensor t = at::arange(120, at::kFloat) * 0.5f;
+    std::vector<at::Tensor> xy = at::meshgrid({t, t}, "ij");
+    at::Tensor x = xy[0].flatten(), y = xy[1].flatten();
+    at::Tensor roof = ((x > 20) & (x < 35) & (y > 10) & (y < 30)).to(at::kFloat) * 6.0f;
+    at::Tensor z = roof + sigma * at::randn({x.size(0)}, gen);
+    at::Tensor all = at::stack({x, y, z}, 1);
+    return all.index_select(0, at::randperm(all.size(0), gen).narrow(0, 0, all.size(0) / 4));
+}
+
+TEST(UpsampleCloud, SurfaceThicknessIsSmallOnPlanesAndGrowsWithNoise) {
+    EXPECT_LT(surface_thickness(gridded_returns(0.0, 1)), 0.02);
+    EXPECT_LT(surface_thickness(gridded_returns(0.05, 1)), kMeasuredThickness);
+    EXPECT_GT(surface_thickness(gridded_returns(0.5, 1)), 2 * kMeasuredThickness);
+    // At the spacing of 100 points a sphere is curved: thick against the spacing (the sag of
+    // a neighbourhood grows as the spacing squared, so the ratio falls as points are added).
+    const double coarse = surface_thickness(fibonacci_sphere(100));
+    EXPECT_GT(coarse, kMeasuredThickness);
+    EXPECT_LT(surface_thickness(fibonacci_sphere(2000)), coarse / 2);
+    EXPECT_EQ(surface_thickness(at::zeros({8, 3})), 0.0);
+    EXPECT_EQ(surface_thickness(at::zeros({40, 3})), 0.0);  // all coincident
+}
+
+TEST(UpsampleCloud, ClassifiesEvenSamplesMeasuredReturnsAndScans) {
+    EXPECT_EQ(classify_input(fibonacci_sphere(500)), InputKind::kSampled);
+    EXPECT_EQ(classify_input(gridded_returns(0.05, 2)), InputKind::kMeasured);
+    // Irregular but noisy across the surface as much as along it: a sample, not returns.
+    EXPECT_EQ(classify_input(gridded_returns(0.5, 2)), InputKind::kSampled);
+    EXPECT_EQ(classify_input(scan_like(400, 200, 9)), InputKind::kScan);
+    EXPECT_STREQ(input_kind_name(InputKind::kMeasured), "measured");
+}
+
 TEST(UpsampleCloud, KeepsTheInputPointsOfScansByDefault) {
     auto model = small_pugcn(4);
     auto contains_input = [](const at::Tensor& out, const at::Tensor& in) {
@@ -228,6 +263,10 @@ TEST(UpsampleCloud, KeepsTheInputPointsOfScansByDefault) {
     EXPECT_TRUE(contains_input(automatic.points, scan));
     options.keep_input = false;
     EXPECT_FALSE(contains_input(upsample_cloud(*model, scan, options).points, scan));
+    // Measured returns (aerial-like) keep theirs too.
+    at::Tensor returns = gridded_returns(0.05, 3).narrow(0, 0, 400);
+    ASSERT_EQ(classify_input(returns), InputKind::kMeasured);
+    EXPECT_TRUE(contains_input(upsample_cloud(*model, returns, UpsampleOptions{}).points, returns));
     // An even sample keeps only network points unless asked.
     at::Tensor even = fibonacci_sphere(300);
     EXPECT_FALSE(contains_input(upsample_cloud(*model, even, UpsampleOptions{}).points, even));

@@ -39,9 +39,9 @@ nlohmann::json geometry_info(const std::string& path, const ReadOptions& read) {
     if (!geometry.is_mesh() && geometry.cloud.size() >= 3) {
         // What `pumeta upsample` decides from: inputs whose nearest-neighbour spacing varies
         // this much are treated as scans (docs/design.md, "Scans").
-        const double spread = spacing_spread(points);
-        info["spacing_spread"] = spread;
-        info["scan_like"] = spread > kScanSpacingSpread;
+        info["spacing_spread"] = spacing_spread(points);
+        info["surface_thickness"] = surface_thickness(points);
+        info["input_kind"] = input_kind_name(classify_input(points));
     }
     return info;
 }
@@ -107,11 +107,17 @@ void print_text(const nlohmann::json& info) {
                                  lo[0].get<double>(), lo[1].get<double>(), lo[2].get<double>(),
                                  hi[0].get<double>(), hi[1].get<double>(), hi[2].get<double>());
     }
-    if (info.contains("spacing_spread"))
+    if (info.contains("input_kind")) {
+        const std::string kind = info["input_kind"].get<std::string>();
         std::cout << fmt::format(
-            "  spacing spread (q90/q10 of nearest-neighbour distance): {:.3g}{}\n",
-            info["spacing_spread"].get<double>(),
-            info["scan_like"].get<bool>() ? " (scan-like: upsample keeps the input points)" : "");
+            "  spacing spread (q90/q10 of nearest-neighbour distance): {:.3g}\n"
+            "  surface thickness (spread across the surface / spacing): {:.3g}\n"
+            "  taken for: {}{}\n",
+            info["spacing_spread"].get<double>(), info["surface_thickness"].get<double>(), kind,
+            kind == "scan"       ? " (upsample keeps the input points and follows scan lines)"
+            : kind == "measured" ? " (upsample keeps the input points)"
+                                 : " (an even sample of a surface)");
+    }
 }
 
 }  // namespace

@@ -154,8 +154,9 @@ struct ScanHandling {
             line_projection = *options.line_projection;
             return;
         }
-        const bool scan = spacing_spread(cloud) > kScanSpacingSpread;
-        keep_input = options.keep_input.value_or(scan);
+        const InputKind kind = classify_input(cloud);
+        const bool scan = kind == InputKind::kScan;
+        keep_input = options.keep_input.value_or(kind != InputKind::kSampled);
         line_projection = options.line_projection.value_or(scan ? kScanLineLinearity : 0.0);
     }
 
@@ -340,6 +341,42 @@ double spacing_spread(const at::Tensor& cloud) {
     at::Tensor q = at::quantile(spacing, at::tensor({0.1, 0.9}, spacing.options()));
     const double low = q[0].item<double>(), high = q[1].item<double>();
     return low > 0 ? high / low : (high > 0 ? std::numeric_limits<double>::infinity() : 1.0);
+}
+
+double surface_thickness(const at::Tensor& cloud) {
+    check_points(cloud, "surface_thickness", 1);
+    constexpr int64_t kNeighbours = 16;
+    if (cloud.size(0) < kNeighbours) return 0.0;
+    at::Tensor points = cloud.to(at::kDouble);
+    KnnResult nn = knn(cloud, cloud, kNeighbours);
+    const double spacing =
+        nn.sq_distances.select(1, 1).sqrt().to(at::kDouble).median().item<double>();
+    if (!(spacing > 0)) return 0.0;
+    at::Tensor neighbours = points.index_select(0, nn.indices.flatten()).view({-1, kNeighbours, 3});
+    at::Tensor centred = neighbours - neighbours.mean(1, /*keepdim=*/true);
+    at::Tensor covariance = at::matmul(centred.transpose(1, 2), centred) / kNeighbours;
+    at::Tensor least = at::linalg_eigvalsh(covariance).select(1, 0).clamp_min(0).sqrt();
+    return least.median().item<double>() / spacing;
+}
+
+InputKind classify_input(const at::Tensor& cloud) {
+    const double spread = spacing_spread(cloud);
+    if (spread > kScanSpacingSpread) return InputKind::kScan;
+    if (spread > kMeasuredSpacingSpread && surface_thickness(cloud) < kMeasuredThickness)
+        return InputKind::kMeasured;
+    return InputKind::kSampled;
+}
+
+const char* input_kind_name(InputKind kind) {
+    switch (kind) {
+        case InputKind::kScan:
+            return "scan";
+        case InputKind::kMeasured:
+            return "measured";
+        case InputKind::kSampled:
+            break;
+    }
+    return "sampled";
 }
 
 namespace {

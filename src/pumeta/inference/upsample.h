@@ -50,7 +50,7 @@ struct UpsampleOptions {
     /// Line projection (0 = off): where an input point's 8 nearest input points lie on a line
     /// (linearity (λ1 − λ2)/λ1 of their covariance above this), output points whose nearest
     /// input point it is move onto that line through it (scan lines of sparse sweeps).
-    /// Unset: kScanLineLinearity for scans (spacing_spread() > kScanSpacingSpread), else off.
+    /// Unset: kScanLineLinearity for scans (InputKind::kScan), else off.
     std::optional<double> line_projection;
     /// Whole-cloud inference (PU-Dense's own protocol) instead of patches: the cloud, scaled
     /// so that its median point spacing equals that of the patches the pipeline would cut,
@@ -60,8 +60,8 @@ struct UpsampleOptions {
     /// "Where PU-Dense's error comes from").
     std::optional<int64_t> whole_cloud_points;
     /// Keep the input points among the outputs (r·N = the N inputs + (r−1)·N network
-    /// points). Unset: when the input's spacing varies as a scan's does
-    /// (spacing_spread() > kScanSpacingSpread); docs/design.md, "Scans".
+    /// points). Unset: for scans and measured returns (classify_input(): InputKind::kScan,
+    /// kMeasured); docs/design.md, "Scans".
     std::optional<bool> keep_input;
     /// A progress bar over the patch batches on a terminal (`pumeta upsample`; off inside
     /// `pumeta eval`, which has its own).
@@ -82,12 +82,38 @@ struct UpsampleResult {
 
 /// The 90th over the 10th percentile of the distances from the points of cloud [N,3] to their
 /// nearest other point (1 for N < 3 or coincident points): about 1.3–1.8 for Poisson-disk
-/// samples of surfaces (with noise up to 2.7), 2.3–2.6 for random subsets of aerial LiDAR,
-/// about 4.7 for uniformly random points on a surface, 9–11 for simulated 32-beam sweeps.
+/// samples of surfaces (with noise up to 3.3), 2.0–3.9 for random subsets of simulated aerial
+/// line scans, about 4.7 for uniformly random points on a surface, 9–11 for simulated 32-beam
+/// sweeps.
 double spacing_spread(const at::Tensor& cloud);
-/// Above this spacing_spread() a pass treats its input as a scan: it keeps the input points
-/// and projects outputs onto scan lines by default (docs/design.md, "Scans").
+/// How thin the surface the points of cloud [N,3] lie on is against their spacing: the median
+/// over points of the standard deviation along the least direction of their 16 nearest
+/// neighbours (sqrt of the least eigenvalue of the neighbourhood covariance), over the median
+/// nearest-neighbour distance (0 for N < 16 or coincident points). About 0.04–0.08 for
+/// simulated aerial scans (roofs and ground, planar at their spacing), 0.03–0.7 for the
+/// 2,048-point samples of meshes (median 0.5: curved at that spacing), 0.3–0.8 with noise of
+/// the order of the spacing.
+double surface_thickness(const at::Tensor& cloud);
+
+/// What the pipeline takes an input for (docs/design.md, "Scans").
+enum class InputKind {
+    kSampled,   ///< an even sample of surfaces (the meshes' Poisson-disk inputs) or a thick one
+    kMeasured,  ///< returns on thin surfaces, irregularly spaced but evenly dense (aerial
+                ///< LiDAR): spacing_spread() > kMeasuredSpacingSpread and surface_thickness()
+                ///< < kMeasuredThickness; keeps the input points
+    kScan,      ///< density varying with range (spinning and terrestrial sweeps):
+                ///< spacing_spread() > kScanSpacingSpread; keeps the input points and projects
+                ///< outputs onto scan lines
+};
+InputKind classify_input(const at::Tensor& cloud);
+/// "sampled", "measured" or "scan".
+const char* input_kind_name(InputKind kind);
+
+/// Above this spacing_spread() a pass treats its input as a scan.
 inline constexpr double kScanSpacingSpread = 6.0;
+/// Above this spacing_spread() and below kMeasuredThickness, as measured returns.
+inline constexpr double kMeasuredSpacingSpread = 1.9;
+inline constexpr double kMeasuredThickness = 0.15;
 /// The line projection's linearity threshold for scans.
 inline constexpr double kScanLineLinearity = 0.3;
 
