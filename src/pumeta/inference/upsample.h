@@ -21,8 +21,8 @@ namespace pumeta {
 
 /// The pipeline's version: raised whenever the same model, input and options give other
 /// points, so that cached results (eval/cell_cache.cpp) are recomputed. 2: every point in a
-/// patch; whole-cloud inference for PU-Dense.
-inline constexpr int64_t kPipelineVersion = 2;
+/// patch; whole-cloud inference for PU-Dense. 3: measured returns keep their input points.
+inline constexpr int64_t kPipelineVersion = 3;
 
 struct UpsampleOptions {
     /// Output ratio; 0 = the model's. A power of the model's ratio (16 = 4 twice) applies the
