@@ -182,10 +182,12 @@ at::Tensor sensor_directions(const ScanSensor& sensor) {
     return directions;
 }
 
-at::Tensor sensor_origins(const ScanSensor& sensor, const double origin[3]) {
+namespace {
+
+/// sensor_origins for a sweep of `rays` rays (the count of sensor_directions).
+at::Tensor ray_origins(const ScanSensor& sensor, const double origin[3], int64_t rays) {
     at::Tensor position = at::tensor({origin[0], origin[1], origin[2]}, at::kDouble).view({1, 3});
-    if (sensor.kind != "aerial")
-        return position.expand({sensor_directions(sensor).size(0), 3}).contiguous();
+    if (sensor.kind != "aerial") return position.expand({rays, 3}).contiguous();
     auto [angles, lines] = aerial_pattern(sensor);
     const int64_t fan = static_cast<int64_t>(angles.size());
     at::Tensor origins = position.repeat({lines * fan, 1});
@@ -194,6 +196,12 @@ at::Tensor sensor_origins(const ScanSensor& sensor, const double origin[3]) {
         for (int64_t i = 0; i < fan; ++i)
             o[3 * (l * fan + i)] += -0.5 * sensor.track_length + l * sensor.line_spacing;
     return origins;
+}
+
+}  // namespace
+
+at::Tensor sensor_origins(const ScanSensor& sensor, const double origin[3]) {
+    return ray_origins(sensor, origin, sensor_directions(sensor).size(0));
 }
 
 SceneOptions scene_options_for(const ScanSensor& sensor) {
@@ -215,8 +223,8 @@ SceneOptions scene_options_for(const ScanSensor& sensor) {
 Scan simulate_scan(const TriangleBvh& scene, const ScanSensor& sensor, const double origin[3],
                    uint64_t seed) {
     at::Tensor directions = sensor_directions(sensor);
-    at::Tensor origins = sensor_origins(sensor, origin);
     const int64_t rays = directions.size(0);
+    at::Tensor origins = ray_origins(sensor, origin, rays);
     at::Tensor hits = scene.first_hits(origins, directions, sensor.max_range);
     const double* t = hits.data_ptr<double>();
     const double* d = directions.data_ptr<double>();

@@ -51,6 +51,14 @@ at::Tensor select_exactly(const at::Tensor& candidates, int64_t count, double fp
     return at::cat({repeated, extra});
 }
 
+/// The scatter matrix Σ (q − q̄)(q − q̄)ᵀ over each point's neighbours q: cloud [N,3],
+/// indices int64 [N,k] into it -> float64 [N,3,3].
+at::Tensor neighbourhood_scatter(const at::Tensor& cloud, const at::Tensor& indices) {
+    at::Tensor neighbours = cloud.index_select(0, indices.flatten()).view({-1, indices.size(1), 3});
+    at::Tensor centred = (neighbours - neighbours.mean(1, /*keepdim=*/true)).to(at::kDouble);
+    return centred.transpose(1, 2).matmul(centred);
+}
+
 /// Pulls every output point q towards its nearest input point p until
 /// |q − p| <= bound · (distance from p to its nearest other input point).
 /// cloud [N,3], outputs [..., 3] (same frame) -> outputs' shape.
@@ -59,10 +67,8 @@ at::Tensor project_onto_lines(const at::Tensor& cloud, const at::Tensor& outputs
     const int64_t k = std::min<int64_t>(8, cloud.size(0));
     if (k < 3) return outputs;
     KdTree tree(cloud);
-    at::Tensor neighbours =
-        cloud.index_select(0, tree.query(cloud, k).indices.flatten()).view({-1, k, 3});
-    at::Tensor centred = (neighbours - neighbours.mean(1, /*keepdim=*/true)).to(at::kDouble);
-    auto [values, vectors] = at::linalg_eigh(centred.transpose(1, 2).matmul(centred));
+    auto [values, vectors] =
+        at::linalg_eigh(neighbourhood_scatter(cloud, tree.query(cloud, k).indices));
     at::Tensor largest = values.select(1, 2);
     at::Tensor linear = (largest - values.select(1, 1)) > threshold * largest.clamp_min(1e-300);
     at::Tensor axis = vectors.select(2, 2).to(cloud.scalar_type());  // [N,3]
@@ -347,14 +353,11 @@ double surface_thickness(const at::Tensor& cloud) {
     check_points(cloud, "surface_thickness", 1);
     constexpr int64_t kNeighbours = 16;
     if (cloud.size(0) < kNeighbours) return 0.0;
-    at::Tensor points = cloud.to(at::kDouble);
     KnnResult nn = knn(cloud, cloud, kNeighbours);
     const double spacing =
         nn.sq_distances.select(1, 1).sqrt().to(at::kDouble).median().item<double>();
     if (!(spacing > 0)) return 0.0;
-    at::Tensor neighbours = points.index_select(0, nn.indices.flatten()).view({-1, kNeighbours, 3});
-    at::Tensor centred = neighbours - neighbours.mean(1, /*keepdim=*/true);
-    at::Tensor covariance = at::matmul(centred.transpose(1, 2), centred) / kNeighbours;
+    at::Tensor covariance = neighbourhood_scatter(cloud, nn.indices) / kNeighbours;
     at::Tensor least = at::linalg_eigvalsh(covariance).select(1, 0).clamp_min(0).sqrt();
     return least.median().item<double>() / spacing;
 }
