@@ -80,6 +80,17 @@ TEST(FarthestPointSampling, TiesGoToTheSmallerIndex) {
     EXPECT_EQ(to_vector(farthest_point_sampling(points, 4)), (std::vector<int64_t>{0, 3, 1, 2}));
 }
 
+TEST(FarthestPointSampling, LatticeTiesGoToTheSmallerIndexInEveryLane) {
+    // A 5x5x5 integer lattice: exact squared distances with many ties, spread over the vector
+    // lanes of the distance update and its scalar tail (125 is not a multiple of 8).
+    at::Tensor axis = at::arange(5, at::kFloat);
+    std::vector<at::Tensor> grid = at::meshgrid({axis, axis, axis}, "ij");
+    at::Tensor points = at::stack({grid[0], grid[1], grid[2]}, -1).view({125, 3});
+    for (int64_t start : {0, 62, 124})
+        EXPECT_EQ(to_vector(farthest_point_sampling(points, 125, start)),
+                  naive_fps<float>(points, 125, start));
+}
+
 TEST(FarthestPointSampling, AllPointsGivesAPermutationAndBadInputThrows) {
     at::Tensor points = uniform_random_points(300, 3);
     std::vector<int64_t> all = to_vector(farthest_point_sampling(points, 300, 7));

@@ -4,7 +4,7 @@
 namespace pumeta {
 
 /// Keeps freed memory in the process instead of returning it to the OS (glibc: no mmap'd
-/// chunks, trim only above 1 GiB). glibc otherwise hands every allocation over its mmap
+/// chunks, no trimming of the heap's top). glibc otherwise hands every allocation over its mmap
 /// threshold back on free, so each large tensor of a training step is page-faulted and
 /// zeroed afresh: PU-GCN steps were 1.8x slower, PU-Dense steps 1.7x (bench/models). Call
 /// once at start-up, before the first tensor; a no-op on other C libraries.

@@ -3,7 +3,9 @@
 #include <ATen/ATen.h>
 #include <ATen/Parallel.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <random>
 #include <vector>
@@ -25,26 +27,73 @@ struct Farthest {
     int64_t index = -1;
 };
 
+/// Four floats in one vector register (GCC's and Clang's vector extension: SSE on x86-64,
+/// NEON on ARM); the distance update runs on two of them at a time.
+using Float4 = float __attribute__((vector_size(16)));
+constexpr int64_t kFpsLanes = 8;
+
+Float4 load4(const float* p) {
+    Float4 v;
+    std::memcpy(&v, p, sizeof v);
+    return v;
+}
+
+/// The coordinates as three arrays, so that the distance update reads each axis contiguously.
+struct AxisArrays {
+    std::vector<float> x, y, z;
+
+    AxisArrays(const float* xyz, int64_t n) : x(n), y(n), z(n) {
+        for (int64_t j = 0; j < n; ++j) {
+            x[j] = xyz[3 * j];
+            y[j] = xyz[3 * j + 1];
+            z[j] = xyz[3 * j + 2];
+        }
+    }
+};
+
 /// Lowers the running distances of points [begin, end) to the newest centre and returns the
-/// farthest of them.
-Farthest update_chunk(const float* xyz, float* min_sq_distance, const float* centre, int64_t begin,
-                      int64_t end) {
-    Farthest best;
-    for (int64_t j = begin; j < end; ++j) {
-        const float dx = xyz[3 * j] - centre[0];
-        const float dy = xyz[3 * j + 1] - centre[1];
-        const float dz = xyz[3 * j + 2] - centre[2];
+/// farthest of them: the first index holding the largest distance, as a sequential scan that
+/// keeps only strictly larger ones would (a NaN distance never wins). Same arithmetic per
+/// point as the scalar form, so the same indices.
+Farthest update_chunk(const AxisArrays& points, float* min_sq_distance, const float* centre,
+                      int64_t begin, int64_t end) {
+    const float *x = points.x.data(), *y = points.y.data(), *z = points.z.data();
+    const float cx = centre[0], cy = centre[1], cz = centre[2];
+    const Float4 cx4 = {cx, cx, cx, cx}, cy4 = {cy, cy, cy, cy}, cz4 = {cz, cz, cz, cz};
+    const float none = Farthest{}.sq_distance;
+    Float4 lane_max[2] = {{none, none, none, none}, {none, none, none, none}};
+    int64_t j = begin;
+    for (; j + kFpsLanes <= end; j += kFpsLanes)
+        for (int half = 0; half < 2; ++half) {
+            const int64_t i = j + 4 * half;
+            const Float4 dx = load4(x + i) - cx4, dy = load4(y + i) - cy4, dz = load4(z + i) - cz4;
+            const Float4 d = dx * dx + dy * dy + dz * dz;
+            const Float4 old = load4(min_sq_distance + i);
+            const Float4 lowered = d < old ? d : old;
+            std::memcpy(min_sq_distance + i, &lowered, sizeof lowered);
+            lane_max[half] = lowered > lane_max[half] ? lowered : lane_max[half];
+        }
+    float largest = none;
+    for (; j < end; ++j) {
+        const float dx = x[j] - cx, dy = y[j] - cy, dz = z[j] - cz;
         const float d = dx * dx + dy * dy + dz * dz;
         if (d < min_sq_distance[j]) min_sq_distance[j] = d;
-        if (min_sq_distance[j] > best.sq_distance) best = {min_sq_distance[j], j};
+        if (min_sq_distance[j] > largest) largest = min_sq_distance[j];
     }
-    return best;
+    for (const Float4& lanes : lane_max)
+        for (int k = 0; k < 4; ++k)
+            if (lanes[k] > largest) largest = lanes[k];
+    if (!(largest > none)) return {};
+    for (j = begin; j < end; ++j)
+        if (min_sq_distance[j] == largest) return {largest, j};
+    return {};
 }
 
 /// FPS over float32 [n,3] CPU coordinates: writes m >= 1 indices to `out`, starting at
 /// `start`. Parallel over chunks of points when there are several.
 void farthest_point_sampling_cpu(const float* xyz, int64_t n, int64_t m, int64_t start,
                                  int64_t* out) {
+    const AxisArrays points(xyz, n);
     std::vector<float> min_sq_distance(n, std::numeric_limits<float>::infinity());
     const int64_t num_chunks = (n + kFpsChunk - 1) / kFpsChunk;
     std::vector<Farthest> chunk_best(num_chunks);
@@ -54,8 +103,9 @@ void farthest_point_sampling_cpu(const float* xyz, int64_t n, int64_t m, int64_t
         if (i + 1 == m) break;
         const float* centre = xyz + 3 * current;
         auto update = [&](int64_t chunk) {
-            chunk_best[chunk] = update_chunk(xyz, min_sq_distance.data(), centre, chunk * kFpsChunk,
-                                             std::min(n, (chunk + 1) * kFpsChunk));
+            chunk_best[chunk] =
+                update_chunk(points, min_sq_distance.data(), centre, chunk * kFpsChunk,
+                             std::min(n, (chunk + 1) * kFpsChunk));
         };
         if (num_chunks == 1) {
             update(0);
