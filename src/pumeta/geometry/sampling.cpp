@@ -28,9 +28,10 @@ struct Farthest {
 };
 
 /// Four floats in one vector register (GCC's and Clang's vector extension: SSE on x86-64,
-/// NEON on ARM); the distance update runs on two of them at a time.
+/// NEON on ARM); the distance update runs on kFpsVectors of them at a time.
 using Float4 = float __attribute__((vector_size(16)));
-constexpr int64_t kFpsLanes = 8;
+constexpr int kFpsVectors = 2;
+constexpr int64_t kFpsLanes = 4 * kFpsVectors;
 
 Float4 load4(const float* p) {
     Float4 v;
@@ -61,17 +62,18 @@ Farthest update_chunk(const AxisArrays& points, float* min_sq_distance, const fl
     const float cx = centre[0], cy = centre[1], cz = centre[2];
     const Float4 cx4 = {cx, cx, cx, cx}, cy4 = {cy, cy, cy, cy}, cz4 = {cz, cz, cz, cz};
     const float none = Farthest{}.sq_distance;
-    Float4 lane_max[2] = {{none, none, none, none}, {none, none, none, none}};
+    Float4 lane_max[kFpsVectors];
+    for (Float4& lanes : lane_max) lanes = Float4{none, none, none, none};
     int64_t j = begin;
     for (; j + kFpsLanes <= end; j += kFpsLanes)
-        for (int half = 0; half < 2; ++half) {
-            const int64_t i = j + 4 * half;
+        for (int v = 0; v < kFpsVectors; ++v) {
+            const int64_t i = j + 4 * v;
             const Float4 dx = load4(x + i) - cx4, dy = load4(y + i) - cy4, dz = load4(z + i) - cz4;
             const Float4 d = dx * dx + dy * dy + dz * dz;
             const Float4 old = load4(min_sq_distance + i);
             const Float4 lowered = d < old ? d : old;
             std::memcpy(min_sq_distance + i, &lowered, sizeof lowered);
-            lane_max[half] = lowered > lane_max[half] ? lowered : lane_max[half];
+            lane_max[v] = lowered > lane_max[v] ? lowered : lane_max[v];
         }
     float largest = none;
     for (; j < end; ++j) {
