@@ -171,6 +171,35 @@ TEST_F(ReproduceTest, TableSevenHasTheModelsThatServeItsRatioPairedWithTheMidpoi
               std::string::npos);
 }
 
+TEST_F(ReproduceTest, TableSevenTakesItsOwnBackbonesWithoutTheirOtherTables) {
+    // any_ratio_backbones names Meta-PU for Table VII only: the other tables keep `backbones`.
+    fs::path models = dir_->path() / "models-any-ratio-only";
+    fs::create_directories(models);
+    fs::copy_file(dir_->path() / "models" / "pugcn-x4.pt", models / "pugcn-x4.pt",
+                  fs::copy_options::overwrite_existing);
+    save_checkpoint((models / "metapu.pt").string(),
+                    *make_backbone(small_backbone_config("metapu")));
+    nlohmann::json j = *config_;
+    j["models_dir"] = models.string();
+    j["backbones"] = {"pugcn"};
+    j["any_ratio_backbones"] = {"metapu"};
+    j["backbone_labels"]["metapu"] = "Meta-PU";
+    j["noise"] = nlohmann::json::array();
+    j["sweep_backbones"] = nlohmann::json::array();
+    j["zero_shot"]["max_cases"] = 0;
+    fs::path out = dir_->path() / "any-ratio-only";
+    nlohmann::json tables = reproduce(ReproduceConfig::from_json(j, "quick"), out.string(), "test");
+
+    const nlohmann::json& t7 = tables.at("table7").at("x3");
+    EXPECT_EQ(t7.at("rows").size(), 2u);  // the midpoint and Meta-PU
+    EXPECT_NO_THROW(row(t7, "Meta-PU"));
+    EXPECT_TRUE(fs::exists(out / "runs/test-indist-x3/metapu/summary.json"));
+    for (const nlohmann::json& r : tables.at("table1").at("rows"))
+        EXPECT_EQ(r.at("label").get<std::string>().find("Meta-PU"), std::string::npos);
+    EXPECT_FALSE(fs::exists(out / "runs/test-indist-x4/metapu"));
+    EXPECT_EQ(tables.at("config").at("any_ratio_backbones"), nlohmann::json({"metapu"}));
+}
+
 TEST_F(ReproduceTest, ASecondRunReusesUnchangedEvaluationsAndRedoesChangedModels) {
     fs::path out = dir_->path() / "resume";
     nlohmann::json first = reproduce(config(), out.string(), "test");

@@ -5,12 +5,15 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <fstream>
 #include <string>
+#include <vector>
 
 #include "pumeta/core/error.h"
 #include "pumeta/models/backbone.h"
 #include "pumeta/models/checkpoint.h"
+#include "pumeta/models/metapu.h"
 #include "support/hdf5_files.h"
 #include "support/test_util.h"
 
@@ -113,6 +116,73 @@ TEST(MetaTrainValidation, DivergedTasksAreScoredUnadapted) {
         EXPECT_EQ(entry["val_inner_after"], entry["val_inner_before"]) << line;
     }
     EXPECT_EQ(validations, 1);
+}
+
+// Tasks at several ratios of one any-ratio model: every validation task is at a listed ratio
+// (X from the GT patch), the ratio models share the meta-trained weights (so the score before
+// adaptation moves with the outer steps), and a ratio the model does not serve is an input
+// error naming the model.
+TEST(MetaTrainTaskRatios, TasksAtSeveralRatiosTrainOneSetOfWeights) {
+    test::TempDir dir;
+    const at::Tensor gt = test::sheet(8, 64, 5);
+    const std::string h5 = dir.file("patches.h5");
+    test::write_hdf5(h5,
+                     {{"poisson_16", gt.slice(1, 0, 16).contiguous(), {}}, {"poisson_64", gt, {}}});
+    nlohmann::json model = metapu_small_config();
+    model["reconstruction"] = "chamfer";
+    save_checkpoint(dir.file("init.pt"), *make_backbone(model));
+    nlohmann::json config = {{"init", dir.file("init.pt")},
+                             {"train_data", h5},
+                             {"val_data", h5},
+                             {"data_input_key", "poisson_16"},
+                             {"data_gt_key", "poisson_64"},
+                             {"meta", {{"inner_steps", 1}, {"inner_lr", 1e-3}}},
+                             {"outer_lr", 1e-2},
+                             {"tasks_per_batch", 2},
+                             {"val_tasks", 4},
+                             {"steps", 2},
+                             {"val_every", 1},
+                             {"log_every", 1}};
+    auto run = [&](const std::string& name, const nlohmann::json& ratios) {
+        nlohmann::json c = config;
+        c["run_dir"] = dir.file(name);
+        c["task_ratios"] = ratios;
+        test::write_file(dir.file(name + ".json"), c.dump());
+        return test::run_cli(
+            {"--threads", "1", "meta-train", "--config", dir.file(name + ".json")});
+    };
+    auto validations = [&](const std::string& name) {
+        std::vector<double> before;
+        std::ifstream log(dir.file(name + "/log.jsonl"));
+        for (std::string line; std::getline(log, line);) {
+            nlohmann::json entry = nlohmann::json::parse(line);
+            if (entry.contains("val_cd_before")) before.push_back(entry["val_cd_before"]);
+        }
+        return before;
+    };
+    auto r = run("x2x3", {2, 3});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    std::vector<double> mixed = validations("x2x3");
+    ASSERT_EQ(mixed.size(), 3u);
+    for (double cd : mixed) EXPECT_TRUE(std::isfinite(cd) && cd > 0) << cd;
+    EXPECT_NE(mixed[0], mixed[2]);  // the ratio models see the outer steps' weights
+
+    r = run("x2", {2});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    r = run("x3", {3});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    // Step 0 (same weights): half the mixed run's tasks are at 2x, half at 3x.
+    const double x2 = validations("x2")[0], x3 = validations("x3")[0];
+    EXPECT_NE(x2, x3);
+    EXPECT_NE(mixed[0], x2);
+    EXPECT_NE(mixed[0], x3);
+
+    r = run("x17", {2, 17});
+    EXPECT_EQ(r.exit_code, 2);
+    EXPECT_NE(r.err.find("'task_ratios': the metapu model of '" + dir.file("init.pt") +
+                         "' does not serve 17x"),
+              std::string::npos)
+        << r.err;
 }
 
 }  // namespace

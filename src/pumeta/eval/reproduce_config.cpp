@@ -74,6 +74,7 @@ void reproduce_fields(Self& c, Visit&& visit) {
     visit("main_ratio", c.main_ratio);
     visit("table3_ratios", c.table3_ratios);
     visit("any_ratios", c.any_ratios);
+    visit("any_ratio_backbones", c.any_ratio_backbones);
     visit("sets", c.sets);
     visit("noise", c.noise);
     visit("noise_backbones", c.noise_backbones);

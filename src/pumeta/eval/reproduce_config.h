@@ -61,6 +61,9 @@ struct ReproduceConfig {
     /// Ratios of Table VII, served only by backbones whose one model takes any ratio
     /// (Meta-PU, PU-Dense's voxel ranking); empty = no Table VII.
     std::vector<int64_t> any_ratios = {3, 5, 6, 12};
+    /// Backbones of Table VII (empty = all of `backbones`). May name backbones outside
+    /// `backbones`: Table VII has no adaptation, so such a row costs plain evaluations only.
+    std::vector<std::string> any_ratio_backbones;
     /// Test sets (layout::kTestSets), the column groups of Tables I, IV and VI; the first is
     /// the set of Tables II, III and V.
     std::vector<std::string> sets{layout::kTestSets.begin(), layout::kTestSets.end()};

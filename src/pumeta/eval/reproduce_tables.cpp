@@ -360,7 +360,9 @@ void write_table7(TablePass& pass) {
                                   }),
                                   {}};
         rows.push_back(midpoint);
-        for (const std::string& backbone : config.backbones) {
+        const std::vector<std::string>& backbones =
+            config.any_ratio_backbones.empty() ? config.backbones : config.any_ratio_backbones;
+        for (const std::string& backbone : backbones) {
             const std::optional<std::string> plain = pass.models.find(backbone, ratio, false);
             if (!plain) continue;
             rows.push_back({config.label_of(backbone), pass.per_set([&](const std::string& set) {

@@ -4,10 +4,15 @@
 #include <spdlog/spdlog.h>
 
 #include <cmath>
+#include <functional>
+#include <map>
+#include <memory>
 #include <optional>
+#include <utility>
 
 #include "pumeta/core/blas_check.h"
 #include "pumeta/core/error.h"
+#include "pumeta/core/hash.h"
 #include "pumeta/core/json_fields.h"
 #include "pumeta/data/patch_set.h"
 #include "pumeta/models/checkpoint.h"
@@ -29,6 +34,7 @@ void visit_fields(Self& c, Visit&& visit) {
     visit_schedule(c.outer, visit, "outer_lr", "outer_lr_decay", "outer_lr_decay_steps");
     visit("step_size_lr", c.step_size_lr);
     visit("val_tasks", c.val_tasks);
+    visit("task_ratios", c.task_ratios);
 }
 
 }  // namespace
@@ -39,6 +45,10 @@ MetaTrainConfig MetaTrainConfig::from_json(const nlohmann::json& j) {
     if (c.init.empty()) throw_input_error("meta-train config", "'init' is required");
     check_run_settings(c, "meta-train config", "tasks_per_batch", c.tasks_per_batch);
     check_schedule(c.outer, "meta-train config", "outer_lr", "outer_lr_decay_steps");
+    for (int64_t ratio : c.task_ratios)
+        if (ratio < 2)
+            throw_input_error("meta-train config", "'task_ratios': ratio {} must be at least 2",
+                              ratio);
     return c;
 }
 
@@ -49,16 +59,25 @@ nlohmann::json MetaTrainConfig::to_json() const {
 namespace {
 
 /// Validation on this rank's shard of the held-out tasks, combined over all ranks.
-AdaptationScore score_adaptation(const Backbone& model, const ValidationSet& val,
+/// Task i of the validation set: the model at the task's ratio and its input X.
+using ValidationTask =
+    std::function<std::pair<const Backbone*, at::Tensor>(int64_t i, const at::Tensor& gt)>;
+
+AdaptationScore score_adaptation(const ValidationTask& task, const ValidationSet& val,
                                  const MetaOptions& meta, const StepSizes& step_sizes,
                                  uint64_t seed, ProcessGroup& group) {
     AdaptationScore score;
     int64_t n = val.input.size(0);
     Shard shard = shard_of(n, group.rank(), group.world_size());
     std::vector<at::Tensor> before, after;
+    // Tasks at several ratios give outputs of several sizes: CD per task, then the mean.
+    bool same_sizes = true;
+    double cd_before = 0, cd_after = 0;
     int64_t diverged = 0;
     for (int64_t i = shard.begin; i < shard.end; ++i) {
-        at::Tensor x = val.input.slice(0, i, i + 1);
+        at::Tensor gt_i = val.gt.slice(0, i, i + 1);
+        auto [model_at_ratio, x] = task(i, gt_i);
+        const Backbone& model = *model_at_ratio;
         at::Tensor x_down = model.downsample(x, seed + static_cast<uint64_t>(i));
         std::vector<double> losses;
         ParamMap adapted =
@@ -76,15 +95,22 @@ AdaptationScore score_adaptation(const Backbone& model, const ValidationSet& val
         at::NoGradGuard no_grad;
         before.push_back(model.upsample(x));
         after.push_back(model.upsample(x, adapted));
+        same_sizes = same_sizes && before.back().size(1) == before.front().size(1) &&
+                     before.back().size(1) == gt_i.size(1);
+        cd_before += mean_chamfer(before.back(), gt_i) / n;
+        cd_after += mean_chamfer(after.back(), gt_i) / n;
     }
     if (diverged > 0)
         spdlog::warn("validation: adaptation diverged on {} of {} tasks; scored unadapted",
                      diverged, shard.size());
     at::Tensor gt = val.gt.slice(0, shard.begin, shard.end);
     double share = static_cast<double>(shard.size()) / n;
-    if (shard.size() > 0) {
+    if (shard.size() > 0 && same_sizes) {
         score.cd_before = mean_chamfer(at::cat(before), gt) * share;
         score.cd_after = mean_chamfer(at::cat(after), gt) * share;
+    } else {
+        score.cd_before = cd_before;
+        score.cd_after = cd_after;
     }
     if (!group.enabled()) return score;
     auto scalar = [](double v) { return at::scalar_tensor(v, at::kDouble); };
@@ -117,6 +143,7 @@ class MetaStage final : public RunStage {
           first_task_(
               static_cast<uint64_t>(config.tasks_per_batch / group.world_size() * group.rank())),
           outer_(model.parameters(), AdamOptions{config.outer.lr}) {
+        for (int64_t ratio : config.task_ratios) share_weights_at(ratio);
         const nlohmann::json& info = opened.info;
         if (config.meta.learn_inner_lr) {
             step_sizes_ = make_step_sizes(model, config.meta);
@@ -153,9 +180,16 @@ class MetaStage final : public RunStage {
     StepOutcome step(int64_t step, const std::function<bool()>& wants_stop) override {
         Batch batch = data_.loader.next();
         outer_.set_lr(config_.outer.at(step));
-        last_step_ = meta_gradient(
-            model_, batch.input, batch.gt, config_.meta, step_sizes_,
-            config_.seed * 1000003 + static_cast<uint64_t>(step) * 64 + first_task_, step);
+        const uint64_t seed =
+            config_.seed * 1000003 + static_cast<uint64_t>(step) * 64 + first_task_;
+        const Backbone* model = &model_;
+        at::Tensor input = batch.input;
+        if (!config_.task_ratios.empty()) {
+            const uint64_t pick = derive_seed(config_.seed, "task-ratio/" + std::to_string(step));
+            model = &at_ratio(config_.task_ratios[pick % config_.task_ratios.size()]);
+            input = model->downsample(batch.gt, derive_seed(seed, "task-input"));
+        }
+        last_step_ = meta_gradient(*model, input, batch.gt, config_.meta, step_sizes_, seed, step);
         bool stop = wants_stop();
         if (group_.enabled()) all_reduce_step(group_, last_step_, stop);
         if (std::isfinite(last_step_.outer_loss)) {
@@ -179,8 +213,15 @@ class MetaStage final : public RunStage {
     bool validates() const override { return data_.val.has_value(); }
 
     ValidationOutcome validate(int64_t) override {
-        last_ = score_adaptation(model_, *data_.val, config_.meta, step_sizes_,
-                                 config_.seed + 99991, group_);
+        const uint64_t seed = config_.seed + 99991;
+        ValidationTask task = [&](int64_t i,
+                                  const at::Tensor& gt) -> std::pair<const Backbone*, at::Tensor> {
+            if (config_.task_ratios.empty()) return {&model_, data_.val->input.slice(0, i, i + 1)};
+            const Backbone& model =
+                at_ratio(config_.task_ratios[size_t(i) % config_.task_ratios.size()]);
+            return {&model, model.downsample(gt, derive_seed(seed + uint64_t(i), "task-input"))};
+        };
+        last_ = score_adaptation(task, *data_.val, config_.meta, step_sizes_, seed, group_);
         return {last_.cd_after,
                 {{"val_cd_before", last_.cd_before},
                  {"val_cd_after", last_.cd_after},
@@ -214,6 +255,27 @@ class MetaStage final : public RunStage {
     const AdaptationScore& last() const { return last_; }
 
   private:
+    /// The model rebuilt at `ratio` (Backbone::config_for_ratio) holding the same parameter
+    /// and buffer tensors as model_, so that its losses' gradients are model_'s and the outer
+    /// optimiser's in-place updates reach it.
+    void share_weights_at(int64_t ratio) {
+        if (ratio == model_.ratio() || at_ratio_.count(ratio)) return;
+        nlohmann::json config = model_.config_for_ratio(ratio);
+        if (config.is_null())
+            throw_input_error("meta-train config",
+                              "'task_ratios': the {} model of '{}' does not serve {}x",
+                              model_.name(), config_.init, ratio);
+        std::unique_ptr<Backbone> rebuilt = make_backbone(config);
+        for (auto& [name, tensor] : rebuilt->parameters())
+            tensor = param(model_.parameters(), name);
+        for (auto& [name, tensor] : rebuilt->buffers()) tensor = param(model_.buffers(), name);
+        at_ratio_.emplace(ratio, std::move(rebuilt));
+    }
+
+    const Backbone& at_ratio(int64_t ratio) const {
+        return ratio == model_.ratio() ? model_ : *at_ratio_.at(ratio);
+    }
+
     const MetaTrainConfig& config_;
     Backbone& model_;
     ProcessGroup& group_;
@@ -222,6 +284,7 @@ class MetaStage final : public RunStage {
     StepSizes step_sizes_;
     Adam outer_;
     std::optional<Adam> step_size_optimizer_;
+    std::map<int64_t, std::unique_ptr<Backbone>> at_ratio_;
     MetaStepResult last_step_;
     AdaptationScore last_;
 };

@@ -12,6 +12,7 @@
 #include <cstdint>
 #include <nlohmann/json.hpp>
 #include <string>
+#include <vector>
 
 #include "pumeta/meta/maml.h"
 #include "pumeta/train/run_settings.h"
@@ -38,6 +39,13 @@ struct MetaTrainConfig : RunSettings {
     /// Adam learning rate of Meta-SGD step sizes (relative to inner_lr's scale).
     double step_size_lr = 1e-3;
     int64_t val_tasks = 64;
+    /// Ratios of the tasks, for a model whose one set of weights serves several
+    /// (Backbone::config_for_ratio: Meta-PU, MPU). Empty: every task at the model's ratio, X
+    /// from the loader. Else each outer step draws one ratio R from the list (a hash of seed and
+    /// step) and every task of the step is X = the model's downsampler at R applied to the GT
+    /// patch, X↓ the same applied to X; validation task i is at ratio task_ratios[i % size].
+    /// The weights are shared: one θ, adapted and meta-trained at every listed ratio.
+    std::vector<int64_t> task_ratios;
 
     static MetaTrainConfig from_json(const nlohmann::json& j);
     nlohmann::json to_json() const;
