@@ -58,11 +58,11 @@ nlohmann::json MetaTrainConfig::to_json() const {
 
 namespace {
 
-/// Validation on this rank's shard of the held-out tasks, combined over all ranks.
 /// Task i of the validation set: the model at the task's ratio and its input X.
 using ValidationTask =
     std::function<std::pair<const Backbone*, at::Tensor>(int64_t i, const at::Tensor& gt)>;
 
+/// Validation on this rank's shard of the held-out tasks, combined over all ranks.
 AdaptationScore score_adaptation(const ValidationTask& task, const ValidationSet& val,
                                  const MetaOptions& meta, const StepSizes& step_sizes,
                                  uint64_t seed, ProcessGroup& group) {
