@@ -44,6 +44,24 @@ class ReproduceTest : public ::testing::Test {
 
     static ReproduceConfig config() { return ReproduceConfig::from_json(*config_, "quick"); }
 
+    /// The quick config with a models folder `name` holding PU-GCN's 4x model and a small
+    /// Meta-PU file (every ratio 2..16), and no noise, sweep or zero-shot tables.
+    static nlohmann::json any_ratio_config(const std::string& name) {
+        fs::path models = dir_->path() / name;
+        fs::create_directories(models);
+        fs::copy_file(dir_->path() / "models" / "pugcn-x4.pt", models / "pugcn-x4.pt",
+                      fs::copy_options::overwrite_existing);
+        save_checkpoint((models / "metapu.pt").string(),
+                        *make_backbone(small_backbone_config("metapu")));
+        nlohmann::json j = *config_;
+        j["models_dir"] = models.string();
+        j["backbone_labels"]["metapu"] = "Meta-PU";
+        j["noise"] = nlohmann::json::array();
+        j["sweep_backbones"] = nlohmann::json::array();
+        j["zero_shot"]["max_cases"] = 0;
+        return j;
+    }
+
     static test::TempDir* dir_;
     static nlohmann::json* config_;
 };
@@ -138,19 +156,8 @@ TEST_F(ReproduceTest, WritesEveryTableWithCellsEqualToTheEvalSummaries) {
 
 TEST_F(ReproduceTest, TableSevenHasTheModelsThatServeItsRatioPairedWithTheMidpoint) {
     // One Meta-PU file serves 3× (scale-conditioned weights); PU-GCN's 4× model does not.
-    fs::path models = dir_->path() / "models-any-ratio";
-    fs::create_directories(models);
-    fs::copy_file(dir_->path() / "models" / "pugcn-x4.pt", models / "pugcn-x4.pt",
-                  fs::copy_options::overwrite_existing);
-    save_checkpoint((models / "metapu.pt").string(),
-                    *make_backbone(small_backbone_config("metapu")));
-    nlohmann::json j = *config_;
-    j["models_dir"] = models.string();
+    nlohmann::json j = any_ratio_config("models-any-ratio");
     j["backbones"] = {"pugcn", "metapu"};
-    j["backbone_labels"]["metapu"] = "Meta-PU";
-    j["noise"] = nlohmann::json::array();
-    j["sweep_backbones"] = nlohmann::json::array();
-    j["zero_shot"]["max_cases"] = 0;
     fs::path out = dir_->path() / "any-ratio";
     nlohmann::json tables = reproduce(ReproduceConfig::from_json(j, "quick"), out.string(), "test");
 
@@ -173,20 +180,9 @@ TEST_F(ReproduceTest, TableSevenHasTheModelsThatServeItsRatioPairedWithTheMidpoi
 
 TEST_F(ReproduceTest, TableSevenTakesItsOwnBackbonesWithoutTheirOtherTables) {
     // any_ratio_backbones names Meta-PU for Table VII only: the other tables keep `backbones`.
-    fs::path models = dir_->path() / "models-any-ratio-only";
-    fs::create_directories(models);
-    fs::copy_file(dir_->path() / "models" / "pugcn-x4.pt", models / "pugcn-x4.pt",
-                  fs::copy_options::overwrite_existing);
-    save_checkpoint((models / "metapu.pt").string(),
-                    *make_backbone(small_backbone_config("metapu")));
-    nlohmann::json j = *config_;
-    j["models_dir"] = models.string();
+    nlohmann::json j = any_ratio_config("models-any-ratio-only");
     j["backbones"] = {"pugcn"};
     j["any_ratio_backbones"] = {"metapu"};
-    j["backbone_labels"]["metapu"] = "Meta-PU";
-    j["noise"] = nlohmann::json::array();
-    j["sweep_backbones"] = nlohmann::json::array();
-    j["zero_shot"]["max_cases"] = 0;
     fs::path out = dir_->path() / "any-ratio-only";
     nlohmann::json tables = reproduce(ReproduceConfig::from_json(j, "quick"), out.string(), "test");
 
