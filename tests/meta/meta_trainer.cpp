@@ -35,6 +35,32 @@ std::string error_of(const nlohmann::json& j) {
     return "no error";
 }
 
+/// Writes 8 sheet patches (16 -> 64 points) as train and validation data and `model` as the
+/// initial checkpoint into `dir`; returns the config fields that point at them.
+nlohmann::json sheet_tasks(const test::TempDir& dir, const nlohmann::json& model) {
+    const at::Tensor gt = test::sheet(8, 64, 5);
+    const std::string h5 = dir.file("patches.h5");
+    test::write_hdf5(h5,
+                     {{"poisson_16", gt.slice(1, 0, 16).contiguous(), {}}, {"poisson_64", gt, {}}});
+    save_checkpoint(dir.file("init.pt"), *make_backbone(model));
+    return {{"init", dir.file("init.pt")},
+            {"train_data", h5},
+            {"val_data", h5},
+            {"data_input_key", "poisson_16"},
+            {"data_gt_key", "poisson_64"}};
+}
+
+/// The validation entries of a run's log.jsonl.
+std::vector<nlohmann::json> validations(const std::string& log_file) {
+    std::vector<nlohmann::json> entries;
+    std::ifstream log(log_file);
+    for (std::string line; std::getline(log, line);) {
+        nlohmann::json entry = nlohmann::json::parse(line);
+        if (entry.contains("val_cd_after")) entries.push_back(entry);
+    }
+    return entries;
+}
+
 TEST(MetaTrainConfig, ReadsNestedMetaOptionsAndRoundTrips) {
     nlohmann::json j = minimal();
     j["meta"] = {
@@ -86,36 +112,23 @@ TEST(MetaTrainConfig, MissingUnknownOrMistypedFieldsAreInputErrors) {
 // whatever NaN weights select.
 TEST(MetaTrainValidation, DivergedTasksAreScoredUnadapted) {
     test::TempDir dir;
-    const at::Tensor gt = test::sheet(8, 64, 5);
-    const std::string h5 = dir.file("patches.h5");
-    test::write_hdf5(h5,
-                     {{"poisson_16", gt.slice(1, 0, 16).contiguous(), {}}, {"poisson_64", gt, {}}});
-    save_checkpoint(dir.file("init.pt"), *make_backbone(test::tiny_pugcn_config(4, 11)));
-    const nlohmann::json config = {{"init", dir.file("init.pt")},
-                                   {"train_data", h5},
-                                   {"val_data", h5},
-                                   {"data_input_key", "poisson_16"},
-                                   {"data_gt_key", "poisson_64"},
-                                   {"run_dir", dir.file("meta")},
-                                   {"meta", {{"inner_steps", 2}, {"inner_lr", 1e9}}},
-                                   {"tasks_per_batch", 4},
-                                   {"val_tasks", 4},
-                                   {"steps", 0},
-                                   {"log_every", 1}};
+    nlohmann::json config = sheet_tasks(dir, test::tiny_pugcn_config(4, 11));
+    config.update({{"run_dir", dir.file("meta")},
+                   {"meta", {{"inner_steps", 2}, {"inner_lr", 1e9}}},
+                   {"tasks_per_batch", 4},
+                   {"val_tasks", 4},
+                   {"steps", 0},
+                   {"log_every", 1}});
     test::write_file(dir.file("meta.json"), config.dump());
     auto r = test::run_cli({"--threads", "1", "meta-train", "--config", dir.file("meta.json")});
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_NE(r.err.find("adaptation diverged on 4 of 4 tasks"), std::string::npos) << r.err;
-    std::ifstream log(dir.file("meta/log.jsonl"));
-    int validations = 0;
-    for (std::string line; std::getline(log, line);) {
-        nlohmann::json entry = nlohmann::json::parse(line);
-        if (!entry.contains("val_cd_after")) continue;
-        ++validations;
-        EXPECT_EQ(entry["val_cd_after"], entry["val_cd_before"]) << line;
-        EXPECT_EQ(entry["val_inner_after"], entry["val_inner_before"]) << line;
+    std::vector<nlohmann::json> entries = validations(dir.file("meta/log.jsonl"));
+    for (const nlohmann::json& entry : entries) {
+        EXPECT_EQ(entry["val_cd_after"], entry["val_cd_before"]) << entry;
+        EXPECT_EQ(entry["val_inner_after"], entry["val_inner_before"]) << entry;
     }
-    EXPECT_EQ(validations, 1);
+    EXPECT_EQ(entries.size(), 1u);
 }
 
 // Tasks at several ratios of one any-ratio model: every validation task is at a listed ratio
@@ -124,25 +137,16 @@ TEST(MetaTrainValidation, DivergedTasksAreScoredUnadapted) {
 // error naming the model.
 TEST(MetaTrainTaskRatios, TasksAtSeveralRatiosTrainOneSetOfWeights) {
     test::TempDir dir;
-    const at::Tensor gt = test::sheet(8, 64, 5);
-    const std::string h5 = dir.file("patches.h5");
-    test::write_hdf5(h5,
-                     {{"poisson_16", gt.slice(1, 0, 16).contiguous(), {}}, {"poisson_64", gt, {}}});
     nlohmann::json model = metapu_small_config();
     model["reconstruction"] = "chamfer";
-    save_checkpoint(dir.file("init.pt"), *make_backbone(model));
-    nlohmann::json config = {{"init", dir.file("init.pt")},
-                             {"train_data", h5},
-                             {"val_data", h5},
-                             {"data_input_key", "poisson_16"},
-                             {"data_gt_key", "poisson_64"},
-                             {"meta", {{"inner_steps", 1}, {"inner_lr", 1e-3}}},
-                             {"outer_lr", 1e-2},
-                             {"tasks_per_batch", 2},
-                             {"val_tasks", 4},
-                             {"steps", 2},
-                             {"val_every", 1},
-                             {"log_every", 1}};
+    nlohmann::json config = sheet_tasks(dir, model);
+    config.update({{"meta", {{"inner_steps", 1}, {"inner_lr", 1e-3}}},
+                   {"outer_lr", 1e-2},
+                   {"tasks_per_batch", 2},
+                   {"val_tasks", 4},
+                   {"steps", 2},
+                   {"val_every", 1},
+                   {"log_every", 1}});
     auto run = [&](const std::string& name, const nlohmann::json& ratios) {
         nlohmann::json c = config;
         c["run_dir"] = dir.file(name);
@@ -151,18 +155,15 @@ TEST(MetaTrainTaskRatios, TasksAtSeveralRatiosTrainOneSetOfWeights) {
         return test::run_cli(
             {"--threads", "1", "meta-train", "--config", dir.file(name + ".json")});
     };
-    auto validations = [&](const std::string& name) {
-        std::vector<double> before;
-        std::ifstream log(dir.file(name + "/log.jsonl"));
-        for (std::string line; std::getline(log, line);) {
-            nlohmann::json entry = nlohmann::json::parse(line);
-            if (entry.contains("val_cd_before")) before.push_back(entry["val_cd_before"]);
-        }
-        return before;
+    auto before = [&](const std::string& name) {
+        std::vector<double> cds;
+        for (const nlohmann::json& entry : validations(dir.file(name + "/log.jsonl")))
+            cds.push_back(entry["val_cd_before"]);
+        return cds;
     };
     auto r = run("x2x3", {2, 3});
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    std::vector<double> mixed = validations("x2x3");
+    std::vector<double> mixed = before("x2x3");
     ASSERT_EQ(mixed.size(), 3u);
     for (double cd : mixed) EXPECT_TRUE(std::isfinite(cd) && cd > 0) << cd;
     EXPECT_NE(mixed[0], mixed[2]);  // the ratio models see the outer steps' weights
@@ -172,7 +173,7 @@ TEST(MetaTrainTaskRatios, TasksAtSeveralRatiosTrainOneSetOfWeights) {
     r = run("x3", {3});
     ASSERT_EQ(r.exit_code, 0) << r.err;
     // Step 0 (same weights): half the mixed run's tasks are at 2x, half at 3x.
-    const double x2 = validations("x2")[0], x3 = validations("x3")[0];
+    const double x2 = before("x2")[0], x3 = before("x3")[0];
     EXPECT_NE(x2, x3);
     EXPECT_NE(mixed[0], x2);
     EXPECT_NE(mixed[0], x3);
