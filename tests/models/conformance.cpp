@@ -212,6 +212,26 @@ TEST_P(Conformance, UpsamplesToRatioTimesThePointsAtEveryRatioItServes) {
     }
 }
 
+TEST_P(Conformance, ARebuildAtAnotherRatioHoldsTheSameWeightTensors) {
+    // Meta-training at several ratios and inference at a ratio other than the stored one
+    // both rely on it: the outer optimiser's in-place updates must reach every rebuild.
+    auto model = this->model();
+    for (int64_t other : {2, 3, 5}) {
+        std::unique_ptr<Backbone> shared = share_weights_at(*model, other);
+        if (model->config_for_ratio(other).is_null()) {
+            EXPECT_EQ(shared, nullptr) << "r = " << other;
+            continue;
+        }
+        ASSERT_NE(shared, nullptr) << "r = " << other;
+        EXPECT_EQ(shared->ratio(), other);
+        EXPECT_FALSE(shared->parameters().empty());
+        for (const auto& [name, tensor] : shared->parameters())
+            EXPECT_TRUE(tensor.is_same(param(model->parameters(), name))) << name;
+        for (const auto& [name, tensor] : shared->buffers())
+            EXPECT_TRUE(tensor.is_same(param(model->buffers(), name))) << name;
+    }
+}
+
 TEST_P(Conformance, CheckpointRoundTripGivesIdenticalOutputs) {
     auto model = this->model();
     at::Tensor x = patches(*model, 2, 3);

@@ -1,7 +1,5 @@
 #include "pumeta/inference/model_file.h"
 
-#include <ATen/ATen.h>
-
 #include <cstdlib>
 #include <filesystem>
 
@@ -14,20 +12,12 @@ namespace pumeta {
 
 namespace {
 
-/// `backbone` rebuilt for `ratio` with the same parameters and buffers, when its weights serve
-/// that ratio; else `backbone` itself.
+/// `backbone` rebuilt for `ratio` with its parameters and buffers, when its weights serve that
+/// ratio; else `backbone` itself.
 std::unique_ptr<Backbone> at_ratio(std::unique_ptr<Backbone> backbone, int64_t ratio) {
     if (ratio <= 0 || ratio == backbone->ratio()) return backbone;
-    nlohmann::json config = backbone->config_for_ratio(ratio);
-    if (config.is_null()) return backbone;
-    std::unique_ptr<Backbone> rebuilt = make_backbone(config);
-    at::NoGradGuard no_grad;
-    auto copy = [](ParamMap& to, const ParamMap& from) {
-        for (auto& [name, tensor] : to) tensor.copy_(param(from, name));
-    };
-    copy(rebuilt->parameters(), backbone->parameters());
-    copy(rebuilt->buffers(), backbone->buffers());
-    return rebuilt;
+    std::unique_ptr<Backbone> rebuilt = share_weights_at(*backbone, ratio);
+    return rebuilt ? std::move(rebuilt) : std::move(backbone);
 }
 
 }  // namespace

@@ -255,20 +255,16 @@ class MetaStage final : public RunStage {
     const AdaptationScore& last() const { return last_; }
 
   private:
-    /// The model rebuilt at `ratio` (Backbone::config_for_ratio) holding the same parameter
-    /// and buffer tensors as model_, so that its losses' gradients are model_'s and the outer
+    /// The model rebuilt at `ratio` holding the same parameter and buffer tensors as model_
+    /// (pumeta::share_weights_at), so that its losses' gradients are model_'s and the outer
     /// optimiser's in-place updates reach it.
     void share_weights_at(int64_t ratio) {
         if (ratio == model_.ratio() || at_ratio_.count(ratio)) return;
-        nlohmann::json config = model_.config_for_ratio(ratio);
-        if (config.is_null())
+        std::unique_ptr<Backbone> rebuilt = pumeta::share_weights_at(model_, ratio);
+        if (!rebuilt)
             throw_input_error("meta-train config",
                               "'task_ratios': the {} model of '{}' does not serve {}x",
                               model_.name(), config_.init, ratio);
-        std::unique_ptr<Backbone> rebuilt = make_backbone(config);
-        for (auto& [name, tensor] : rebuilt->parameters())
-            tensor = param(model_.parameters(), name);
-        for (auto& [name, tensor] : rebuilt->buffers()) tensor = param(model_.buffers(), name);
         at_ratio_.emplace(ratio, std::move(rebuilt));
     }
 

@@ -19,4 +19,13 @@ void Backbone::to(const std::string& device) {
     for (auto& [name, tensor] : buffers_) tensor = tensor.to(target);
 }
 
+std::unique_ptr<Backbone> share_weights_at(const Backbone& model, int64_t ratio) {
+    nlohmann::json config = model.config_for_ratio(ratio);
+    if (config.is_null()) return nullptr;
+    std::unique_ptr<Backbone> rebuilt = make_backbone(config);
+    for (auto& [name, tensor] : rebuilt->parameters()) tensor = param(model.parameters(), name);
+    for (auto& [name, tensor] : rebuilt->buffers()) tensor = param(model.buffers(), name);
+    return rebuilt;
+}
+
 }  // namespace pumeta

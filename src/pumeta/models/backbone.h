@@ -150,6 +150,11 @@ class Backbone {
 /// an unknown kind or invalid fields. Parameters are freshly initialised from config["seed"].
 std::unique_ptr<Backbone> make_backbone(const nlohmann::json& config);
 
+/// `model` rebuilt at `ratio` (make_backbone of Backbone::config_for_ratio) holding the very
+/// same parameter and buffer tensors, so that gradients and in-place updates of either reach
+/// both; null when its weights do not serve `ratio`.
+std::unique_ptr<Backbone> share_weights_at(const Backbone& model, int64_t ratio);
+
 using BackboneFactory = std::function<std::unique_ptr<Backbone>(const nlohmann::json&)>;
 
 /// Adds a backbone kind to the registry (called once per backbone in registry.cpp).
