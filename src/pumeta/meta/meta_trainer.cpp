@@ -69,10 +69,7 @@ AdaptationScore score_adaptation(const ValidationTask& task, const ValidationSet
     AdaptationScore score;
     int64_t n = val.input.size(0);
     Shard shard = shard_of(n, group.rank(), group.world_size());
-    std::vector<at::Tensor> before, after;
-    // Tasks at several ratios give outputs of several sizes: CD per task, then the mean.
-    bool same_sizes = true;
-    double cd_before = 0, cd_after = 0;
+    // CD per task, then the mean: tasks at several ratios give outputs of several sizes.
     int64_t diverged = 0;
     for (int64_t i = shard.begin; i < shard.end; ++i) {
         at::Tensor gt_i = val.gt.slice(0, i, i + 1);
@@ -93,25 +90,12 @@ AdaptationScore score_adaptation(const ValidationTask& task, const ValidationSet
         score.inner_loss_before += losses.front() / n;
         score.inner_loss_after += losses.back() / n;
         at::NoGradGuard no_grad;
-        before.push_back(model.upsample(x));
-        after.push_back(model.upsample(x, adapted));
-        same_sizes = same_sizes && before.back().size(1) == before.front().size(1) &&
-                     before.back().size(1) == gt_i.size(1);
-        cd_before += mean_chamfer(before.back(), gt_i) / n;
-        cd_after += mean_chamfer(after.back(), gt_i) / n;
+        score.cd_before += mean_chamfer(model.upsample(x), gt_i) / n;
+        score.cd_after += mean_chamfer(model.upsample(x, adapted), gt_i) / n;
     }
     if (diverged > 0)
         spdlog::warn("validation: adaptation diverged on {} of {} tasks; scored unadapted",
                      diverged, shard.size());
-    at::Tensor gt = val.gt.slice(0, shard.begin, shard.end);
-    double share = static_cast<double>(shard.size()) / n;
-    if (shard.size() > 0 && same_sizes) {
-        score.cd_before = mean_chamfer(at::cat(before), gt) * share;
-        score.cd_after = mean_chamfer(at::cat(after), gt) * share;
-    } else {
-        score.cd_before = cd_before;
-        score.cd_after = cd_after;
-    }
     if (!group.enabled()) return score;
     auto scalar = [](double v) { return at::scalar_tensor(v, at::kDouble); };
     ParamMap totals = group.sum({{"cd_before", scalar(score.cd_before)},
