@@ -127,7 +127,7 @@ class MetaStage final : public RunStage {
           first_task_(
               static_cast<uint64_t>(config.tasks_per_batch / group.world_size() * group.rank())),
           outer_(model.parameters(), AdamOptions{config.outer.lr}) {
-        for (int64_t ratio : config.task_ratios) share_weights_at(ratio);
+        for (int64_t ratio : config.task_ratios) add_task_ratio(ratio);
         const nlohmann::json& info = opened.info;
         if (config.meta.learn_inner_lr) {
             step_sizes_ = make_step_sizes(model, config.meta);
@@ -242,7 +242,7 @@ class MetaStage final : public RunStage {
     /// The model rebuilt at `ratio` holding the same parameter and buffer tensors as model_
     /// (pumeta::share_weights_at), so that its losses' gradients are model_'s and the outer
     /// optimiser's in-place updates reach it.
-    void share_weights_at(int64_t ratio) {
+    void add_task_ratio(int64_t ratio) {
         if (ratio == model_.ratio() || at_ratio_.count(ratio)) return;
         std::unique_ptr<Backbone> rebuilt = pumeta::share_weights_at(model_, ratio);
         if (!rebuilt)

@@ -23,8 +23,22 @@ std::unique_ptr<Backbone> share_weights_at(const Backbone& model, int64_t ratio)
     nlohmann::json config = model.config_for_ratio(ratio);
     if (config.is_null()) return nullptr;
     std::unique_ptr<Backbone> rebuilt = make_backbone(config);
-    for (auto& [name, tensor] : rebuilt->parameters()) tensor = param(model.parameters(), name);
-    for (auto& [name, tensor] : rebuilt->buffers()) tensor = param(model.buffers(), name);
+    // The rebuild must hold every weight of the original, each of the same shape: a tensor
+    // left out or reshaped would be a config_for_ratio that does not serve this ratio.
+    auto share = [&](ParamMap& to, const ParamMap& from, const char* what) {
+        if (to.size() != from.size())
+            throw InternalError(fmt::format("{} at {}x: {} {} for the original's {}", model.name(),
+                                            ratio, to.size(), what, from.size()));
+        for (auto& [name, tensor] : to) {
+            const at::Tensor& original = param(from, name);
+            if (!tensor.sizes().equals(original.sizes()))
+                throw InternalError(fmt::format("{} at {}x: {} '{}' has another shape",
+                                                model.name(), ratio, what, name));
+            tensor = original;
+        }
+    };
+    share(rebuilt->parameters(), model.parameters(), "parameters");
+    share(rebuilt->buffers(), model.buffers(), "buffers");
     return rebuilt;
 }
 
