@@ -219,11 +219,7 @@ TEST(CliBenchmark, TrainAndMetaTrainReadAnHdf5PatchFile) {
     auto r = test::run_cli(args);
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_EQ(nlohmann::json::parse(r.out)["steps"], 2);
-    int losses = 0;
-    std::ifstream log(dir.file("run/log.jsonl"));
-    for (std::string line; std::getline(log, line);)
-        if (nlohmann::json::parse(line).contains("loss")) ++losses;
-    EXPECT_EQ(losses, 2);
+    EXPECT_EQ(test::log_records(dir.file("run/log.jsonl"), "loss").size(), 2u);
 
     save_checkpoint(dir.file("init.pt"), *make_backbone(test::tiny_pugcn_config(4, 11)));
     const nlohmann::json meta = {{"init", dir.file("init.pt")},

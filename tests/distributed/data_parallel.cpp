@@ -12,7 +12,6 @@
 
 #include <chrono>
 #include <cmath>
-#include <fstream>
 #include <thread>
 
 #include "distributed/free_port.h"
@@ -161,28 +160,6 @@ class DataParallel : public ::testing::Test {
         return run_dir + ".rank" + std::to_string(rank) + ".err";
     }
 
-    /// The per-step records of a run's log.jsonl (validation lines skipped).
-    static std::vector<nlohmann::json> step_log(const std::string& run_dir) {
-        std::vector<nlohmann::json> records;
-        std::ifstream in(run_dir + "/log.jsonl");
-        for (std::string line; std::getline(in, line);) {
-            auto j = nlohmann::json::parse(line);
-            if (!j.contains("val_cd_before") && !j.contains("val_cd")) records.push_back(j);
-        }
-        return records;
-    }
-
-    /// The validation records of a run's log.jsonl.
-    static std::vector<nlohmann::json> validation_log(const std::string& run_dir) {
-        std::vector<nlohmann::json> records;
-        std::ifstream in(run_dir + "/log.jsonl");
-        for (std::string line; std::getline(in, line);) {
-            auto j = nlohmann::json::parse(line);
-            if (j.contains("val_cd_before")) records.push_back(j);
-        }
-        return records;
-    }
-
     /// Largest relative difference max|a - b| / max|b| over the parameters of two checkpoints.
     static double max_relative_difference(const std::string& a, const std::string& b) {
         ParamMap pa = load_checkpoint(a).backbone->parameters();
@@ -225,16 +202,20 @@ TEST_F(DataParallel, TwoRanksMetaTrainLikeOneProcessWithTheWholeBatchAndResume) 
               {"--set", "steps=4", "--resume", "--allow-change", "steps"});
     if (HasFailure()) return;
 
-    std::vector<nlohmann::json> one = step_log(dir_.file("one"));
+    std::vector<nlohmann::json> one =
+        test::log_records(dir_.file("one") + "/log.jsonl", "outer_loss");
     ASSERT_EQ(one.size(), 4u);
     const std::vector<std::string> keys = {"outer_loss", "outer_loss_before", "inner_loss_before",
                                            "inner_loss_after"};
-    expect_same_losses(step_log(dir_.file("two")), one, keys);
-    expect_same_losses(step_log(dir_.file("resumed")), one, keys);
+    expect_same_losses(test::log_records(dir_.file("two") + "/log.jsonl", "outer_loss"), one, keys);
+    expect_same_losses(test::log_records(dir_.file("resumed") + "/log.jsonl", "outer_loss"), one,
+                       keys);
     // Validation (steps 0 and 4) is sharded over the ranks and summed: the same scores.
-    std::vector<nlohmann::json> validated = validation_log(dir_.file("one"));
+    std::vector<nlohmann::json> validated =
+        test::log_records(dir_.file("one") + "/log.jsonl", "val_cd_before");
     ASSERT_EQ(validated.size(), 2u);
-    expect_same_losses(validation_log(dir_.file("two")), validated,
+    expect_same_losses(test::log_records(dir_.file("two") + "/log.jsonl", "val_cd_before"),
+                       validated,
                        {"val_cd_before", "val_cd_after", "val_inner_before", "val_inner_after"});
 
     std::string reference = dir_.file("one") + "/model.pt";
@@ -249,9 +230,9 @@ TEST_F(DataParallel, TwoRanksTrainLikeOneProcessWithTheWholeBatch) {
     run_ranks("train", config, dir_.file("one"), 1);
     run_ranks("train", config, dir_.file("two"), 2);
     if (HasFailure()) return;
-    std::vector<nlohmann::json> one = step_log(dir_.file("one"));
+    std::vector<nlohmann::json> one = test::log_records(dir_.file("one") + "/log.jsonl", "loss");
     ASSERT_EQ(one.size(), 4u);
-    expect_same_losses(step_log(dir_.file("two")), one, {"loss"});
+    expect_same_losses(test::log_records(dir_.file("two") + "/log.jsonl", "loss"), one, {"loss"});
     std::string reference = dir_.file("one") + "/model.pt";
     EXPECT_LT(max_relative_difference(dir_.file("two") + "/model.pt", reference), 1e-5);
     EXPECT_GT(max_relative_difference(dir_.file("init.pt"), reference), 1e-2);
@@ -287,9 +268,11 @@ class PeerFailure : public DataParallel {
         Process rank0(rank_args("meta-train", path, run_dir, 2, 0, master), err_file(run_dir, 0));
         Process rank1(rank_args("meta-train", path, run_dir, 2, 1, master), err_file(run_dir, 1));
         auto started = Clock::now();
-        while (step_log(run_dir).size() < 2 && Clock::now() - started < std::chrono::minutes(2))
+        while (test::log_records(run_dir + "/log.jsonl", "outer_loss").size() < 2 &&
+               Clock::now() - started < std::chrono::minutes(2))
             std::this_thread::sleep_for(std::chrono::milliseconds(50));
-        EXPECT_GE(step_log(run_dir).size(), 2u) << "training never got going";
+        EXPECT_GE(test::log_records(run_dir + "/log.jsonl", "outer_loss").size(), 2u)
+            << "training never got going";
 
         Process& victim_process = victim == 0 ? rank0 : rank1;
         Process& survivor_process = victim == 0 ? rank1 : rank0;

@@ -6,7 +6,6 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <fstream>
 #include <string>
 #include <vector>
 
@@ -48,17 +47,6 @@ nlohmann::json sheet_tasks(const test::TempDir& dir, const nlohmann::json& model
             {"val_data", h5},
             {"data_input_key", "poisson_16"},
             {"data_gt_key", "poisson_64"}};
-}
-
-/// The validation entries of a run's log.jsonl.
-std::vector<nlohmann::json> validations(const std::string& log_file) {
-    std::vector<nlohmann::json> entries;
-    std::ifstream log(log_file);
-    for (std::string line; std::getline(log, line);) {
-        nlohmann::json entry = nlohmann::json::parse(line);
-        if (entry.contains("val_cd_after")) entries.push_back(entry);
-    }
-    return entries;
 }
 
 TEST(MetaTrainConfig, ReadsNestedMetaOptionsAndRoundTrips) {
@@ -123,7 +111,8 @@ TEST(MetaTrainValidation, DivergedTasksAreScoredUnadapted) {
     auto r = test::run_cli({"--threads", "1", "meta-train", "--config", dir.file("meta.json")});
     ASSERT_EQ(r.exit_code, 0) << r.err;
     EXPECT_NE(r.err.find("adaptation diverged on 4 of 4 tasks"), std::string::npos) << r.err;
-    std::vector<nlohmann::json> entries = validations(dir.file("meta/log.jsonl"));
+    std::vector<nlohmann::json> entries =
+        test::log_records(dir.file("meta/log.jsonl"), "val_cd_after");
     for (const nlohmann::json& entry : entries) {
         EXPECT_EQ(entry["val_cd_after"], entry["val_cd_before"]) << entry;
         EXPECT_EQ(entry["val_inner_after"], entry["val_inner_before"]) << entry;
@@ -157,7 +146,8 @@ TEST(MetaTrainTaskRatios, TasksAtSeveralRatiosTrainOneSetOfWeights) {
     };
     auto before = [&](const std::string& name) {
         std::vector<double> cds;
-        for (const nlohmann::json& entry : validations(dir.file(name + "/log.jsonl")))
+        for (const nlohmann::json& entry :
+             test::log_records(dir.file(name + "/log.jsonl"), "val_cd_after"))
             cds.push_back(entry["val_cd_before"]);
         return cds;
     };

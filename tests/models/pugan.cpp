@@ -8,7 +8,6 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <fstream>
 
 #include "pumeta/core/error.h"
 #include "pumeta/data/patch_set.h"
@@ -248,17 +247,12 @@ TEST(PuGan, TrainsWithItsDiscriminatorKeptInTheRunStateOnly) {
     config.log_every = 1;
     train(config, false);
 
-    std::ifstream log(dir.file("run/log.jsonl"));
-    int64_t lines = 0;
-    for (std::string line; std::getline(log, line);) {
-        nlohmann::json j = nlohmann::json::parse(line);
-        if (!j.contains("loss")) continue;
-        ++lines;
+    std::vector<nlohmann::json> steps = test::log_records(dir.file("run/log.jsonl"), "loss");
+    EXPECT_EQ(steps.size(), 2u);
+    for (const nlohmann::json& j : steps)
         for (const char* term : {"loss_emd", "loss_uniform", "loss_repulsion",
                                  "loss_regularization", "loss_adversarial", "auxiliary_loss"})
             EXPECT_TRUE(j.contains(term)) << term << " missing from " << j.dump();
-    }
-    EXPECT_EQ(lines, 2);
     TrainingState state = load_training_state(dir.file("run/state.ckpt"));
     ParamMap fresh = make(small()).make_auxiliary(config.seed);
     ASSERT_TRUE(state.optimizer.count("aux/d.fc1.weight"));

@@ -86,6 +86,16 @@ std::string read_file(const std::string& path) {
     return buffer.str();
 }
 
+std::vector<nlohmann::json> log_records(const std::string& log_file, const std::string& key) {
+    std::vector<nlohmann::json> records;
+    std::ifstream log(log_file);
+    for (std::string line; std::getline(log, line);) {
+        nlohmann::json record = nlohmann::json::parse(line);
+        if (record.contains(key)) records.push_back(std::move(record));
+    }
+    return records;
+}
+
 at::Tensor sheet(int64_t batch, int64_t n, uint64_t seed, at::ScalarType type) {
     at::Generator gen = at::detail::createCPUGenerator(seed);
     at::Tensor uv = at::rand({batch, n, 2}, gen, at::TensorOptions().dtype(type)) * 2 - 1;

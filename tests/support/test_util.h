@@ -80,6 +80,11 @@ void write_file(const std::string& path, const std::string& text);
 /// Reads a whole file.
 std::string read_file(const std::string& path);
 
+/// The records of a run's log.jsonl (one JSON object per line) that hold `key`, in order:
+/// "loss" for supervised steps, "outer_loss" for meta-training steps, "val_cd" and
+/// "val_cd_after" for validations.
+std::vector<nlohmann::json> log_records(const std::string& log_file, const std::string& key);
+
 /// A small surface patch: n points per element on a gently curved sheet over [-1,1]²,
 /// [B,n,3], from a seeded generator.
 at::Tensor sheet(int64_t batch, int64_t n, uint64_t seed, at::ScalarType type = at::kFloat);

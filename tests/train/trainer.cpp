@@ -55,16 +55,6 @@ TrainConfig tiny_config(const test::TempDir& dir, int64_t ratio, const std::stri
     return c;
 }
 
-std::vector<nlohmann::json> loss_lines(const std::string& log) {
-    std::vector<nlohmann::json> lines;
-    std::ifstream in(log);
-    for (std::string line; std::getline(in, line);) {
-        nlohmann::json j = nlohmann::json::parse(line);
-        if (j.contains("loss")) lines.push_back(j);
-    }
-    return lines;
-}
-
 TEST(Train, LogsEachTermOfALossWithSeveral) {
     test::TempDir dir;
     TrainConfig config = tiny_config(dir, 4, "dispu");
@@ -72,7 +62,7 @@ TEST(Train, LogsEachTermOfALossWithSeveral) {
     config.backbone["repulsion_weight"] = 1.0;
     config.steps = 2;
     train(config, false);
-    std::vector<nlohmann::json> lines = loss_lines(dir.file("dispu/log.jsonl"));
+    std::vector<nlohmann::json> lines = test::log_records(dir.file("dispu/log.jsonl"), "loss");
     ASSERT_EQ(lines.size(), 2u);
     for (const nlohmann::json& j : lines) {
         const double sum = j.at("loss_coarse").get<double>() + j.at("loss_fine").get<double>() +
@@ -84,7 +74,7 @@ TEST(Train, LogsEachTermOfALossWithSeveral) {
     TrainConfig plain = tiny_config(dir, 4, "pugcn");
     plain.steps = 1;
     train(plain, false);
-    std::vector<nlohmann::json> pugcn = loss_lines(dir.file("pugcn/log.jsonl"));
+    std::vector<nlohmann::json> pugcn = test::log_records(dir.file("pugcn/log.jsonl"), "loss");
     ASSERT_EQ(pugcn.size(), 1u);
     for (const auto& [key, value] : pugcn[0].items()) EXPECT_NE(key.rfind("loss_", 0), 0u) << key;
 }
@@ -203,7 +193,7 @@ TEST(Train, ResumeAfterAKillLogsEveryStepOnce) {
     config.steps = 6;
     train(config, /*resume=*/true, 0, {"steps"});
     std::vector<int64_t> steps;
-    for (const nlohmann::json& line : loss_lines(log)) steps.push_back(line["step"]);
+    for (const nlohmann::json& line : test::log_records(log, "loss")) steps.push_back(line["step"]);
     EXPECT_EQ(steps, (std::vector<int64_t>{1, 2, 3, 4, 5, 6}));
 }
 
@@ -343,7 +333,7 @@ TEST(Train, AnAuxiliaryNetworkTrainsWithItsOwnLossAndResumesOutsideTheModel) {
     TrainConfig config = adversarial_config(dir, "straight", 4);
     train(config, false);
     // The log has the adversarial term and the auxiliary loss of every step.
-    std::vector<nlohmann::json> lines = loss_lines(dir.file("straight/log.jsonl"));
+    std::vector<nlohmann::json> lines = test::log_records(dir.file("straight/log.jsonl"), "loss");
     ASSERT_EQ(lines.size(), 4u);
     for (const nlohmann::json& j : lines) {
         EXPECT_TRUE(j.contains("loss_adversarial")) << j.dump();
@@ -381,6 +371,29 @@ TEST(Train, TheAuxiliaryLearningRateDecaysWithTheRunsSchedule) {
     TrainingState state = load_training_state(dir.file("decayed/state.ckpt"));
     EXPECT_DOUBLE_EQ(state.info.at("adam").at("lr").get<double>(), 0.0025);
     EXPECT_DOUBLE_EQ(state.info.at("aux_adam").at("lr").get<double>(), 0.0025);
+}
+
+TEST(Train, UpdatesPerBatchStepsTheBackboneThatOftenPerAuxiliaryStep) {
+    test::TempDir dir;
+    TrainConfig config = adversarial_config(dir, "twice", 3);
+    config.updates_per_batch = 2;
+    train(config, false);
+    // PU-GAN's rhythm: two generator steps per batch, one discriminator step.
+    TrainingState state = load_training_state(dir.file("twice/state.ckpt"));
+    EXPECT_EQ(state.info.at("adam").at("step").get<int64_t>(), 6);
+    EXPECT_EQ(state.info.at("aux_adam").at("step").get<int64_t>(), 3);
+    // The generator moved further than with one update per batch.
+    config.updates_per_batch = 1;
+    config.run_dir = dir.file("once");
+    train(config, false);
+    TrainingState once = load_training_state(dir.file("once/state.ckpt"));
+    EXPECT_FALSE(at::equal(param(once.model->parameters(), "offset"),
+                           param(state.model->parameters(), "offset")));
+
+    nlohmann::json j = config.to_json();
+    j["updates_per_batch"] = 0;
+    EXPECT_TRUE(test::throws_input_error([&] { TrainConfig::from_json(j); },
+                                         {"train config", "'updates_per_batch' must be >= 1"}));
 }
 
 }  // namespace

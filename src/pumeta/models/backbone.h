@@ -152,7 +152,8 @@ std::unique_ptr<Backbone> make_backbone(const nlohmann::json& config);
 
 /// `model` rebuilt at `ratio` (make_backbone of Backbone::config_for_ratio) holding the very
 /// same parameter and buffer tensors, so that gradients and in-place updates of either reach
-/// both; null when its weights do not serve `ratio`.
+/// both; null when its weights do not serve `ratio`. The sharing ends when to() moves either
+/// model to another device (new tensors): move `model` first, then share.
 std::unique_ptr<Backbone> share_weights_at(const Backbone& model, int64_t ratio);
 
 using BackboneFactory = std::function<std::unique_ptr<Backbone>(const nlohmann::json&)>;
