@@ -31,6 +31,7 @@ void visit_fields(Self& c, Visit&& visit) {
     visit("backbone", c.backbone);
     visit("batch_size", c.batch_size);
     visit_schedule(c.schedule, visit, "lr", "lr_decay_rate", "lr_decay_steps", "lr_min");
+    visit("updates_per_batch", c.updates_per_batch);
     visit("val_patches", c.val_patches);
     visit("init_from", c.init_from);
 }
@@ -42,6 +43,9 @@ TrainConfig TrainConfig::from_json(const nlohmann::json& j) {
     read_fields(j, "train config", [&](auto&& visit) { visit_fields(c, visit); });
     check_run_settings(c, "train config", "batch_size", c.batch_size);
     check_schedule(c.schedule, "train config", "lr", "lr_decay_steps");
+    if (c.updates_per_batch < 1)
+        throw_input_error("train config", "'updates_per_batch' must be >= 1, found {}",
+                          c.updates_per_batch);
     return c;
 }
 
@@ -225,21 +229,31 @@ class SupervisedStage final : public RunStage {
     StepOutcome step(int64_t step, const std::function<bool()>& wants_stop) override {
         Batch batch = data_.loader.next();
         adam_.set_lr(config_.schedule.at(step) * model_.learning_rate_factor(step));
-        model_.update_buffers(batch.input, model_.parameters());
-        // training_terms: loss_terms unless the backbone trains otherwise (auxiliary networks,
-        // a curriculum).
-        LossTerms terms = model_.training_terms(batch.input, batch.gt, model_.parameters(),
-                                                auxiliary_.parameters(), step);
-        at::Tensor loss = sum_of(terms);
-        // Only the parameters this step's loss reaches: a curriculum's frozen levels keep
-        // their weights and Adam moments, as the originals' optimisers over a variable list.
-        ParamMap grads = used_gradients(loss, model_.parameters());
-        double loss_value = loss.item<double>();
-        if (terms.size() > 1)
-            for (const auto& [name, term] : terms) term_sums_[name] += term.item<double>();
-        bool stop = wants_stop();
-        if (group_.enabled()) all_reduce_step(group_, grads, model_.buffers(), loss_value, stop);
-        adam_.step(grads);
+        const int64_t updates = config_.updates_per_batch;
+        double loss_value = 0;
+        bool stop = false;
+        for (int64_t update = 0; update < updates; ++update) {
+            model_.update_buffers(batch.input, model_.parameters());
+            // training_terms: loss_terms unless the backbone trains otherwise (auxiliary
+            // networks, a curriculum).
+            LossTerms terms = model_.training_terms(batch.input, batch.gt, model_.parameters(),
+                                                    auxiliary_.parameters(), step);
+            at::Tensor loss = sum_of(terms);
+            // Only the parameters this step's loss reaches: a curriculum's frozen levels keep
+            // their weights and Adam moments, as the originals' optimisers over a variable list.
+            ParamMap grads = used_gradients(loss, model_.parameters());
+            double value = loss.item<double>();
+            if (terms.size() > 1)
+                for (const auto& [name, term] : terms)
+                    term_sums_[name] += term.item<double>() / double(updates);
+            // The ranks agree on stopping once per batch, with the last update's reduction.
+            bool stop_here = update + 1 == updates && wants_stop();
+            if (group_.enabled())
+                all_reduce_step(group_, grads, model_.buffers(), value, stop_here);
+            adam_.step(grads);
+            loss_value += value / double(updates);
+            stop = stop_here;
+        }
         if (!auxiliary_.empty())
             auxiliary_loss_sum_ += auxiliary_.step(
                 model_, batch, step, config_.schedule.at(step) / config_.schedule.lr, group_);

@@ -27,6 +27,9 @@ struct TrainConfig : RunSettings {
     /// Adam's learning rate: max(lr_min, lr · lr_decay_rate^(step / lr_decay_steps)), PU-GCN's
     /// schedule (JSON fields lr, lr_decay_rate, lr_decay_steps, lr_min).
     LrSchedule schedule{1e-3, 0.7, 50000, 1e-6};
+    /// Adam steps of the backbone on each batch, every one on the same patches, before the
+    /// auxiliary networks' step (PU-GAN's original: two generator steps per discriminator step).
+    int64_t updates_per_batch = 1;
     /// Validation patches (fixed: the first val_patches of a seeded draw, no augmentation).
     int64_t val_patches = 256;
     /// Optional checkpoint whose parameters and buffers initialise a fresh run wherever name
