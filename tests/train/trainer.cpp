@@ -227,6 +227,12 @@ TEST(Train, ResumeComparesTheFieldsBothConfigsHave) {
             .empty());
     EXPECT_EQ(changed_fields(stored, {{"steps", 20}, {"meta", {{"inner_lr", 0.02}}}}),
               (std::vector<std::string>{"meta.inner_lr", "steps"}));
+    // The added ones are listed apart, so that the resume can name them.
+    EXPECT_EQ(added_fields(
+                  stored,
+                  {{"steps", 10}, {"meta", {{"inner_lr", 0.01}, {"inner_steps", 5}}}, {"new", 1}}),
+              (std::vector<std::string>{"meta.inner_steps", "new"}));
+    EXPECT_TRUE(added_fields(stored, stored).empty());
 }
 
 TEST(Train, TwoTrainersCannotWriteOneRunDirectory) {

@@ -10,6 +10,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 
 #include "pumeta/core/error.h"
 #include "pumeta/geometry/io/file.h"
@@ -154,6 +155,24 @@ std::vector<std::string> changed_fields(const nlohmann::json& stored, const nloh
     return changes;
 }
 
+std::vector<std::string> added_fields(const nlohmann::json& stored, const nlohmann::json& now) {
+    std::vector<std::string> added;
+    std::function<void(const nlohmann::json&, const nlohmann::json&, const std::string&)> walk =
+        [&](const nlohmann::json& old_node, const nlohmann::json& new_node,
+            const std::string& prefix) {
+            if (!old_node.is_object() || !new_node.is_object()) return;
+            for (const auto& [key, value] : new_node.items()) {
+                const std::string path = prefix.empty() ? key : prefix + "." + key;
+                if (!old_node.contains(key))
+                    added.push_back(path);
+                else
+                    walk(old_node[key], value, path);
+            }
+        };
+    walk(stored, now, "");
+    return added;
+}
+
 void append_log(const std::string& file, const nlohmann::json& record) {
     std::ofstream(file, std::ios::app) << record.dump() << "\n";
 }
@@ -216,10 +235,14 @@ TrainingState open_run(const std::string& run_dir, const RunStart& start, bool w
                                   "config, or allow named fields with --allow-change",
                                   list);
             }
-            if (writes)
+            if (writes) {
                 for (const std::string& field : accepted)
                     spdlog::info("{}: resuming with {} changed from {} to {}", what, field,
                                  field_text(stored, field), field_text(now, field));
+                for (const std::string& field : added_fields(stored, now))
+                    spdlog::info("{}: resuming with {} = {} (the run predates the field)", what,
+                                 field, field_text(now, field));
+            }
         }
         if (writes) {
             truncate_log((fs::path(run_dir) / "log.jsonl").string(), step);

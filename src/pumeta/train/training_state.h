@@ -45,6 +45,10 @@ nlohmann::json comparable_config(nlohmann::json config);
 /// has (written before they existed, or retired since) do not count.
 std::vector<std::string> changed_fields(const nlohmann::json& stored, const nlohmann::json& now);
 
+/// The fields ("a.b" paths) that `now` has and `stored` lacks: settings added to the code
+/// after the stored run began. A resume takes them at `now`'s values and says so.
+std::vector<std::string> added_fields(const nlohmann::json& stored, const nlohmann::json& now);
+
 /// Appends one JSON record as a line of `file`.
 void append_log(const std::string& file, const nlohmann::json& record);
 
