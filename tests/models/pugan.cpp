@@ -222,6 +222,17 @@ TEST(PuGan, DiscriminatorStepReusesTheGeneratorOutputOfItsBatch) {
     model.training_terms(x, y, model.parameters(), d, 0);
     EXPECT_NEAR(model.auxiliary_loss(x.clone(), y, model.parameters(), d, 0).item<double>(),
                 fake_score(after), 1e-6);
+
+    // Two generator updates on one batch (updates_per_batch 2): D still sees the output from
+    // before the first, as the original's D step, which precedes both.
+    model.training_terms(x, y, model.parameters(), d, 0);
+    {
+        at::NoGradGuard no_grad;
+        for (auto& [name, p] : model.parameters()) p.add_(0.05);
+    }
+    model.training_terms(x, y, model.parameters(), d, 0);
+    EXPECT_NEAR(model.auxiliary_loss(x, y, model.parameters(), d, 0).item<double>(),
+                fake_score(after), 1e-6);
 }
 
 TEST(PuGan, TrainsWithItsDiscriminatorKeptInTheRunStateOnly) {

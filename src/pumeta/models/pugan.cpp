@@ -274,9 +274,13 @@ LossTerms PuGan::training_terms(const at::Tensor& input, const at::Tensor& targe
                                 const ParamMap& params, const ParamMap& auxiliary, int64_t) const {
     at::Tensor pred = upsample(input, params);
     {
+        // The first output on this batch is kept: after several generator updates on it the
+        // discriminator still sees the output from before them all.
         std::lock_guard<std::mutex> lock(last_mutex_);
-        last_input_ = input;
-        last_output_ = pred.detach();
+        if (!last_input_.defined() || !last_input_.is_same(input)) {
+            last_input_ = input;
+            last_output_ = pred.detach();
+        }
     }
     LossTerms terms = reconstruction_terms(pred, target);
     at::Tensor squares;

@@ -120,9 +120,10 @@ class PuGan : public Backbone {
                              int64_t step) const override;
     /// The LSGAN discriminator loss mean_b (D(target) − 1)² + mean_b D(upsample(input))², the
     /// generated points without gradient. The trainer calls it after training_terms on the
-    /// same batch: the generator's output from there is reused (the discriminator sees the
-    /// output before the generator's update, as in the original, where its step comes
-    /// first), so the step pays for one generator pass; another input is upsampled afresh.
+    /// same batch: the generator's output from its first call there is reused (the
+    /// discriminator sees the output from before the generator's updates on the batch, one
+    /// or several, as in the original, where its step comes first), so the step pays for no
+    /// generator pass; another input is upsampled afresh.
     at::Tensor auxiliary_loss(const at::Tensor& input, const at::Tensor& target,
                               const ParamMap& params, const ParamMap& auxiliary,
                               int64_t step) const override;

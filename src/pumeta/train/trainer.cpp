@@ -232,8 +232,9 @@ class SupervisedStage final : public RunStage {
         const int64_t updates = config_.updates_per_batch;
         double loss_value = 0;
         bool stop = false;
+        // Buffers (running statistics, Dis-PU's step count) move once per batch.
+        model_.update_buffers(batch.input, model_.parameters());
         for (int64_t update = 0; update < updates; ++update) {
-            model_.update_buffers(batch.input, model_.parameters());
             // training_terms: loss_terms unless the backbone trains otherwise (auxiliary
             // networks, a curriculum).
             LossTerms terms = model_.training_terms(batch.input, batch.gt, model_.parameters(),

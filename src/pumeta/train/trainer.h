@@ -29,6 +29,8 @@ struct TrainConfig : RunSettings {
     LrSchedule schedule{1e-3, 0.7, 50000, 1e-6};
     /// Adam steps of the backbone on each batch, every one on the same patches, before the
     /// auxiliary networks' step (PU-GAN's original: two generator steps per discriminator step).
+    /// Buffers update once per batch; the logged loss (and each term) is the mean over the
+    /// updates, the later ones measured after the earlier ones' steps.
     int64_t updates_per_batch = 1;
     /// Validation patches (fixed: the first val_patches of a seeded draw, no augmentation).
     int64_t val_patches = 256;
