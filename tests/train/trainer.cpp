@@ -388,7 +388,7 @@ TEST(Train, UpdatesPerBatchStepsTheBackboneThatOftenPerAuxiliaryStep) {
     TrainingState state = load_training_state(dir.file("twice/state.ckpt"));
     EXPECT_EQ(state.info.at("adam").at("step").get<int64_t>(), 6);
     EXPECT_EQ(state.info.at("aux_adam").at("step").get<int64_t>(), 3);
-    // The generator moved further than with one update per batch.
+    // The generator ends elsewhere than with one update per batch.
     config.updates_per_batch = 1;
     config.run_dir = dir.file("once");
     train(config, false);

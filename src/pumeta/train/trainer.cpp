@@ -248,12 +248,10 @@ class SupervisedStage final : public RunStage {
                 for (const auto& [name, term] : terms)
                     term_sums_[name] += term.item<double>() / double(updates);
             // The ranks agree on stopping once per batch, with the last update's reduction.
-            bool stop_here = update + 1 == updates && wants_stop();
-            if (group_.enabled())
-                all_reduce_step(group_, grads, model_.buffers(), value, stop_here);
+            stop = update + 1 == updates && wants_stop();
+            if (group_.enabled()) all_reduce_step(group_, grads, model_.buffers(), value, stop);
             adam_.step(grads);
             loss_value += value / double(updates);
-            stop = stop_here;
         }
         if (!auxiliary_.empty())
             auxiliary_loss_sum_ += auxiliary_.step(

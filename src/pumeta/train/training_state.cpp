@@ -10,7 +10,6 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <functional>
 
 #include "pumeta/core/error.h"
 #include "pumeta/geometry/io/file.h"
@@ -104,12 +103,18 @@ nlohmann::json comparable_config(nlohmann::json config) {
 
 namespace {
 
+/// One walk over `now`'s fields: those whose value differs from `stored`'s into `changes`,
+/// those `stored` lacks into `added`.
 void collect_changes(const nlohmann::json& stored, const nlohmann::json& now,
-                     const std::string& prefix, std::vector<std::string>& changes) {
+                     const std::string& prefix, std::vector<std::string>& changes,
+                     std::vector<std::string>& added) {
     if (stored.is_object() && now.is_object()) {
         for (const auto& [key, value] : now.items()) {
-            if (!stored.contains(key)) continue;
-            collect_changes(stored[key], value, prefix.empty() ? key : prefix + "." + key, changes);
+            const std::string path = prefix.empty() ? key : prefix + "." + key;
+            if (!stored.contains(key))
+                added.push_back(path);
+            else
+                collect_changes(stored[key], value, path, changes, added);
         }
         // Keys `now` lacks are settings this version no longer has (now lists every field it
         // knows): retired, not changed.
@@ -150,26 +155,14 @@ std::string field_text(const nlohmann::json& config, const std::string& path) {
 }  // namespace
 
 std::vector<std::string> changed_fields(const nlohmann::json& stored, const nlohmann::json& now) {
-    std::vector<std::string> changes;
-    collect_changes(stored, now, "", changes);
+    std::vector<std::string> changes, added;
+    collect_changes(stored, now, "", changes, added);
     return changes;
 }
 
 std::vector<std::string> added_fields(const nlohmann::json& stored, const nlohmann::json& now) {
-    std::vector<std::string> added;
-    std::function<void(const nlohmann::json&, const nlohmann::json&, const std::string&)> walk =
-        [&](const nlohmann::json& old_node, const nlohmann::json& new_node,
-            const std::string& prefix) {
-            if (!old_node.is_object() || !new_node.is_object()) return;
-            for (const auto& [key, value] : new_node.items()) {
-                const std::string path = prefix.empty() ? key : prefix + "." + key;
-                if (!old_node.contains(key))
-                    added.push_back(path);
-                else
-                    walk(old_node[key], value, path);
-            }
-        };
-    walk(stored, now, "");
+    std::vector<std::string> changes, added;
+    collect_changes(stored, now, "", changes, added);
     return added;
 }
 
