@@ -18,6 +18,8 @@
 #include "pumeta/geometry/sampling.h"
 #include "pumeta/models/backbone.h"
 #include "pumeta/models/checkpoint.h"
+#include "pumeta/nn/adam.h"
+#include "pumeta/nn/gradients.h"
 #include "pumeta/train/training_state.h"
 #include "support/test_util.h"
 
@@ -263,6 +265,16 @@ TEST(Train, ConfigTypeErrorsAreInputErrorsNamingTheField) {
     EXPECT_THROW(TrainConfig::from_json(j), InputError);
 }
 
+/// What ToyAdversarial::training_terms saw at each call: the offset it was evaluated at and
+/// the gradient of its summed terms there.
+struct TermsCall {
+    at::Tensor offset, gradient;
+};
+std::vector<TermsCall>& terms_calls() {
+    static std::vector<TermsCall> calls;
+    return calls;
+}
+
 /// A toy adversarial backbone: the generator shifts every input point by a learned offset and
 /// repeats it r times; its auxiliary "discriminator" scores a cloud by w·mean + b and trains
 /// with least-squares GAN losses.
@@ -291,9 +303,8 @@ class ToyAdversarial final : public Backbone {
     }
     LossTerms training_terms(const at::Tensor& x, const at::Tensor& y, const ParamMap& params,
                              const ParamMap& aux, int64_t step) const override {
-        LossTerms terms = loss_terms(x, y, params, step);
-        terms.emplace_back("adversarial", (score(upsample(x, params), aux) - 1).square().mean());
-        return terms;
+        record_call(x, y, params, aux, step);
+        return terms_at(x, y, params, aux, step);
     }
     at::Tensor auxiliary_loss(const at::Tensor& x, const at::Tensor& y, const ParamMap& params,
                               const ParamMap& aux, int64_t) const override {
@@ -307,6 +318,20 @@ class ToyAdversarial final : public Backbone {
     double auxiliary_lr(int64_t) const override { return 0.01; }
 
   private:
+    LossTerms terms_at(const at::Tensor& x, const at::Tensor& y, const ParamMap& params,
+                       const ParamMap& aux, int64_t step) const {
+        LossTerms terms = loss_terms(x, y, params, step);
+        terms.emplace_back("adversarial", (score(upsample(x, params), aux) - 1).square().mean());
+        return terms;
+    }
+    void record_call(const at::Tensor& x, const at::Tensor& y, const ParamMap& params,
+                     const ParamMap& aux, int64_t step) const {
+        ParamMap copy = {{"offset", params.at("offset").detach().clone().requires_grad_(true)}};
+        ParamMap fixed_aux;
+        for (const auto& [name, t] : aux) fixed_aux[name] = t.detach();
+        at::Tensor total = sum_of(terms_at(x, y, copy, fixed_aux, step));
+        terms_calls().push_back({copy.at("offset").detach(), gradients(total, copy).at("offset")});
+    }
     static at::Tensor score(const at::Tensor& cloud, const ParamMap& aux) {
         return at::matmul(cloud.mean(1), aux.at("w")) + aux.at("b");
     }
@@ -395,6 +420,26 @@ TEST(Train, UpdatesPerBatchStepsTheBackboneThatOftenPerAuxiliaryStep) {
     TrainingState once = load_training_state(dir.file("once/state.ckpt"));
     EXPECT_FALSE(at::equal(param(once.model->parameters(), "offset"),
                            param(state.model->parameters(), "offset")));
+
+    // Each update takes a fresh gradient at the weights the previous one left: replaying
+    // Adam on the gradients the toy saw gives the trained weights (a trainer that applied
+    // one gradient twice, or evaluated both at the batch's first weights, would not).
+    terms_calls().clear();
+    config.updates_per_batch = 2;
+    config.run_dir = dir.file("replayed");
+    train(config, false);
+    ASSERT_EQ(terms_calls().size(), 6u);
+    ParamMap replay = {{"offset", terms_calls().front().offset.clone()}};
+    Adam adam(replay, AdamOptions{});
+    for (size_t i = 0; i < terms_calls().size(); ++i) {
+        const TermsCall& call = terms_calls()[i];
+        adam.set_lr(config.schedule.at(static_cast<int64_t>(i / 2)));
+        EXPECT_TRUE(at::allclose(replay.at("offset"), call.offset, 1e-5, 1e-7));
+        adam.step({{"offset", call.gradient}});
+    }
+    TrainingState replayed = load_training_state(dir.file("replayed/state.ckpt"));
+    EXPECT_TRUE(at::allclose(param(replayed.model->parameters(), "offset"), replay.at("offset"),
+                             1e-5, 1e-7));
 
     nlohmann::json j = config.to_json();
     j["updates_per_batch"] = 0;
