@@ -89,9 +89,15 @@ std::string read_file(const std::string& path) {
 std::vector<nlohmann::json> log_records(const std::string& log_file, const std::string& key) {
     std::vector<nlohmann::json> records;
     std::ifstream log(log_file);
-    for (std::string line; std::getline(log, line);) {
-        nlohmann::json record = nlohmann::json::parse(line);
+    std::stringstream text;
+    text << log.rdbuf();
+    // Only complete lines: a writer may be in the middle of the last one.
+    const std::string all = text.str();
+    size_t begin = 0;
+    for (size_t end = all.find('\n'); end != std::string::npos; end = all.find('\n', begin)) {
+        nlohmann::json record = nlohmann::json::parse(all.substr(begin, end - begin));
         if (record.contains(key)) records.push_back(std::move(record));
+        begin = end + 1;
     }
     return records;
 }

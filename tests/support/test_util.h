@@ -82,7 +82,8 @@ std::string read_file(const std::string& path);
 
 /// The records of a run's log.jsonl (one JSON object per line) that hold `key`, in order:
 /// "loss" for supervised steps, "outer_loss" for meta-training steps, "val_cd" and
-/// "val_cd_after" for validations.
+/// "val_cd_after" for validations. A last line without its newline is left out: a run may be
+/// writing it while a test polls.
 std::vector<nlohmann::json> log_records(const std::string& log_file, const std::string& key);
 
 /// A small surface patch: n points per element on a gently curved sheet over [-1,1]²,
