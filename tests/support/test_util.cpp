@@ -89,15 +89,11 @@ std::string read_file(const std::string& path) {
 std::vector<nlohmann::json> log_records(const std::string& log_file, const std::string& key) {
     std::vector<nlohmann::json> records;
     std::ifstream log(log_file);
-    std::stringstream text;
-    text << log.rdbuf();
-    // Only complete lines: a writer may be in the middle of the last one.
-    const std::string all = text.str();
-    size_t begin = 0;
-    for (size_t end = all.find('\n'); end != std::string::npos; end = all.find('\n', begin)) {
-        nlohmann::json record = nlohmann::json::parse(all.substr(begin, end - begin));
+    // Only complete lines: getline reaching the end without a newline sets eof, and a writer
+    // may be in the middle of that last line.
+    for (std::string line; std::getline(log, line) && !log.eof();) {
+        nlohmann::json record = nlohmann::json::parse(line);
         if (record.contains(key)) records.push_back(std::move(record));
-        begin = end + 1;
     }
     return records;
 }
