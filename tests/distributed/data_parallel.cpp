@@ -231,7 +231,8 @@ TEST_F(DataParallel, TwoRanksTrainLikeOneProcessWithTheWholeBatch) {
     for (const std::string updates : {"1", "2"}) {
         SCOPED_TRACE("updates_per_batch " + updates);
         const std::vector<std::string> set = {"--set", "updates_per_batch=" + updates};
-        const std::string one_dir = dir_.file("one" + updates), two_dir = dir_.file("two" + updates);
+        const std::string one_dir = dir_.file("one" + updates),
+                          two_dir = dir_.file("two" + updates);
         run_ranks("train", config, one_dir, 1, set);
         run_ranks("train", config, two_dir, 2, set);
         if (HasFailure()) return;
@@ -242,9 +243,9 @@ TEST_F(DataParallel, TwoRanksTrainLikeOneProcessWithTheWholeBatch) {
         EXPECT_GT(max_relative_difference(dir_.file("init.pt"), one_dir + "/model.pt"), 1e-2);
     }
     // The second update is a step of its own, not a repeat of the first's outcome.
-    EXPECT_GT(max_relative_difference(dir_.file("one2") + "/model.pt",
-                                      dir_.file("one1") + "/model.pt"),
-              1e-3);
+    EXPECT_GT(
+        max_relative_difference(dir_.file("one2") + "/model.pt", dir_.file("one1") + "/model.pt"),
+        1e-3);
 }
 
 TEST_F(DataParallel, BatchThatDoesNotSplitEvenlyIsAnInputError) {

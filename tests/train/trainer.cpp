@@ -427,8 +427,8 @@ TEST(Train, UpdatesPerBatchStepsTheBackboneThatOftenPerAuxiliaryStep) {
         EXPECT_TRUE(at::allclose(replay.at("offset"), calls[i].offset, 1e-5, 1e-7));
         adam.step({{"offset", calls[i].gradient}});
     }
-    EXPECT_TRUE(at::allclose(param(state.model->parameters(), "offset"), replay.at("offset"),
-                             1e-5, 1e-7));
+    EXPECT_TRUE(
+        at::allclose(param(state.model->parameters(), "offset"), replay.at("offset"), 1e-5, 1e-7));
 
     // The generator ends elsewhere than with one update per batch.
     config.updates_per_batch = 1;
