@@ -199,6 +199,21 @@ TEST(Train, ResumeAfterAKillLogsEveryStepOnce) {
     EXPECT_EQ(steps, (std::vector<int64_t>{1, 2, 3, 4, 5, 6}));
 }
 
+// The helper the log tests read with: a writer (another rank, a run being killed) may be in
+// the middle of the last line, which must be left out rather than parsed.
+TEST(TestSupport, LogRecordsLeavesOutALastLineWithoutItsNewline) {
+    test::TempDir dir;
+    const std::string log = dir.file("log.jsonl");
+    test::write_file(log,
+                     "{\"step\": 1, \"loss\": 0.5}\n{\"step\": 1, \"val_cd\": 0.1}\n"
+                     "{\"step\": 2, \"loss\": 0.4}\n{\"step\": 3, \"lo");
+    std::vector<nlohmann::json> records = test::log_records(log, "loss");
+    ASSERT_EQ(records.size(), 2u);
+    EXPECT_EQ(records[0]["step"], 1);
+    EXPECT_EQ(records[1]["step"], 2);
+    EXPECT_EQ(test::log_records(log, "val_cd").size(), 1u);
+}
+
 TEST(Train, ResumeRefusesAChangedConfigUnlessTheFieldIsAllowed) {
     test::TempDir dir;
     TrainConfig config = tiny_config(dir, 4, "run");
