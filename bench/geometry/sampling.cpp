@@ -122,6 +122,40 @@ void print_fps_against_baseline() {
 
 BENCHMARK(BM_FarthestPointSampling)->Arg(1)->Unit(benchmark::kMillisecond)->UseRealTime();
 
+/// Prints the pruned FPS against the full scan (farthest_point_sampling on 2 threads, the
+/// pruned one on its one) for points on a surface (the UV sphere), picking a quarter: the
+/// final selection of an upsampling pass, whose candidates lie on the surfaces.
+void print_pruned_fps_against_full_scan() {
+    at::set_num_threads(2);
+    for (const int64_t n : {8192, 50000, 200000}) {
+        at::Tensor points = pumeta::sample_uniform(sphere(), n, 1).points;
+        const int repeats = n > 50000 ? 1 : 3;
+        at::Tensor full, pruned;
+        const double t_full =
+            best_seconds(repeats, [&] { full = pumeta::farthest_point_sampling(points, n / 4); });
+        const double t_pruned = best_seconds(
+            repeats, [&] { pruned = pumeta::farthest_point_sampling_pruned(points, n / 4); });
+        std::printf(
+            "FPS %lld -> %lld on a sphere: full scan (2 threads) %.1f ms, pruned (1 thread) "
+            "%.1f ms: %.1fx (%s)\n",
+            static_cast<long long>(n), static_cast<long long>(n / 4), 1e3 * t_full, 1e3 * t_pruned,
+            t_full / t_pruned, full.equal(pruned) ? "same indices" : "INDICES DIFFER");
+    }
+}
+
+void BM_FarthestPointSamplingPruned(benchmark::State& state) {
+    at::Tensor points = pumeta::sample_uniform(sphere(), state.range(0), 1).points;
+    for (auto _ : state)
+        benchmark::DoNotOptimize(
+            pumeta::farthest_point_sampling_pruned(points, state.range(0) / 4));
+}
+BENCHMARK(BM_FarthestPointSamplingPruned)
+    ->Arg(8192)
+    ->Arg(200000)
+    ->Arg(4000000)
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
 /// Four elements at once, in parallel on two threads.
 void BM_FarthestPointSamplingBatched(benchmark::State& state) {
     at::set_num_threads(2);
@@ -159,6 +193,7 @@ int main(int argc, char** argv) {
     benchmark::Initialize(&argc, argv);
     if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
     print_fps_against_baseline();
+    print_pruned_fps_against_full_scan();
     benchmark::RunSpecifiedBenchmarks();
     benchmark::Shutdown();
     return 0;

@@ -68,6 +68,7 @@ TEST(Cli, NumericOptionsAreValidatedWithOneLine) {
         {{"upsample", in, "-o", out, "--tta-lr", "-0.1"}, "--tta-lr"},
         {{"upsample", in, "-o", out, "--seed", "-3"}, "--seed"},
         {{"upsample", in, "-o", out, "--batch-patches", "0"}, "--batch-patches"},
+        {{"upsample", in, "-o", out, "--select", "random"}, "--select"},
         {{"--threads", "0", "upsample", in, "-o", out}, "--threads"},
         {{"sample", in, "-n", "0", "-o", out}, "--count"},
         {{"render", in, "-o", dir.file("a.png"), "--point-radius", "inf"}, "--point-radius"},

@@ -163,6 +163,31 @@ TEST_F(DatasetTest, ValidationObjectsGetCasesTooAndTrainingObjectsDoNot) {
     EXPECT_TRUE(fs::exists(out.path() / "ds" / "val-x4.tensors"));
 }
 
+TEST_F(DatasetTest, GtSubsetInputsAreARandomPartOfEachRatiosGroundTruth) {
+    test::TempDir out;
+    DatasetConfig config = tiny_config(dir_->file("raw"));
+    config.ratios = {4, 8};
+    config.case_inputs = "gt_subset";
+    config.splits = {"test-scans"};
+    nlohmann::json manifest = make_dataset(config, out.file("ds"));
+    EXPECT_EQ(manifest["config"]["case_inputs"], "gt_subset");
+    EXPECT_FALSE(tiny_config("raw").to_json().contains("case_inputs"));  // the default
+    for (int64_t r : {4, 8}) {
+        fs::path dir =
+            out.path() / "ds" / "cases" / "test-scans" / ("x" + std::to_string(r)) / "cgal_bunny00";
+        at::Tensor input = read_point_cloud((dir / "input.ply").string()).points;
+        at::Tensor gt = read_point_cloud((dir / "gt.ply").string()).points;
+        ASSERT_EQ(gt.size(0), 128 * r);
+        ASSERT_EQ(input.size(0), 128);
+        // Every input point is a ground-truth point; no two are the same one.
+        KnnResult nearest = knn(gt, input, 1);
+        EXPECT_EQ(nearest.sq_distances.max().item<float>(), 0.f);
+        EXPECT_EQ(std::get<0>(at::_unique(nearest.indices.flatten())).size(0), 128);
+        EXPECT_EQ(read_point_cloud((dir / "input_rel1.ply").string()).size(), 128);
+    }
+    EXPECT_THROW(DatasetConfig::from_json({{"case_inputs", "random"}}), InputError);
+}
+
 TEST_F(DatasetTest, SameSeedSameDatasetAndPatchSetRoundTrips) {
     test::TempDir again;
     make_dataset(tiny_config(dir_->file("raw")), again.file("out"));

@@ -103,6 +103,54 @@ TEST(FarthestPointSampling, AllPointsGivesAPermutationAndBadInputThrows) {
     EXPECT_THROW(farthest_point_sampling(at::zeros({5, 2}), 1), InputError);
 }
 
+TEST(FarthestPointSampling, PrunedEqualsTheTextbookAlgorithm) {
+    at::Tensor points = uniform_random_points(2000, 1);
+    for (int64_t start : {0, 17, 1999})
+        EXPECT_EQ(to_vector(farthest_point_sampling_pruned(points, 150, start)),
+                  naive_fps<float>(points, 150, start));
+}
+
+TEST(FarthestPointSampling, PrunedEqualsTheFullScanOnLargeClouds) {
+    // Many leaves, every pick up to all points: uniform, on a thin curved sheet (a scan-like
+    // surface), and clustered with a far outlier (boxes of very different sizes).
+    at::Tensor uniform = uniform_random_points(30000, 11);
+    at::Tensor sheet = uniform.clone();
+    sheet.select(1, 2).copy_(at::sin(3 * sheet.select(1, 0)) * 0.2 + sheet.select(1, 2) * 1e-3);
+    at::Tensor clustered =
+        at::cat({uniform_random_points(20000, 12) * 0.01,
+                 uniform_random_points(9999, 13) * 0.1 + 0.5, at::full({1, 3}, 40.f)});
+    for (const at::Tensor& points : {uniform, sheet, clustered})
+        for (int64_t m : {int64_t{1}, int64_t{7}, int64_t{4000}, int64_t{30000}})
+            EXPECT_EQ(to_vector(farthest_point_sampling_pruned(points, m, 3)),
+                      to_vector(farthest_point_sampling(points, m, 3)))
+                << m << " points";
+}
+
+TEST(FarthestPointSampling, PrunedBreaksTiesAndRepeatsAsTheFullScan) {
+    // A 20^3 lattice (exact distances, ties everywhere), and the same points twice (once every
+    // distinct point is picked, only zero distances remain and indices repeat).
+    at::Tensor axis = at::arange(20, at::kFloat);
+    std::vector<at::Tensor> grid = at::meshgrid({axis, axis, axis}, "ij");
+    at::Tensor lattice = at::stack({grid[0], grid[1], grid[2]}, -1).view({8000, 3});
+    for (int64_t start : {0, 4321})
+        EXPECT_EQ(to_vector(farthest_point_sampling_pruned(lattice, 8000, start)),
+                  to_vector(farthest_point_sampling(lattice, 8000, start)));
+    at::Tensor twice = at::cat({uniform_random_points(700, 14), uniform_random_points(700, 14)});
+    EXPECT_EQ(to_vector(farthest_point_sampling_pruned(twice, 1400, 5)),
+              to_vector(farthest_point_sampling(twice, 1400, 5)));
+}
+
+TEST(FarthestPointSampling, PrunedRejectsBadInput) {
+    at::Tensor points = uniform_random_points(300, 3);
+    EXPECT_EQ(farthest_point_sampling_pruned(points, 0).numel(), 0);
+    EXPECT_THROW(farthest_point_sampling_pruned(points, 301), InputError);
+    EXPECT_THROW(farthest_point_sampling_pruned(points, 5, 300), InputError);
+    points[100][1] = std::numeric_limits<float>::quiet_NaN();
+    EXPECT_THROW(farthest_point_sampling_pruned(points, 5), InputError);
+    points[100][1] = std::numeric_limits<float>::infinity();
+    EXPECT_THROW(farthest_point_sampling_pruned(points, 5), InputError);
+}
+
 TEST(FarthestPointSampling, BatchedEqualsEachElement) {
     at::Tensor points = at::stack({uniform_random_points(500, 4), uniform_random_points(500, 5),
                                    uniform_random_points(500, 6)});

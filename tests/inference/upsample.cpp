@@ -276,6 +276,33 @@ TEST(UpsampleCloud, KeepsTheInputPointsOfScansByDefault) {
     EXPECT_TRUE(contains_input(kept.points, even));
 }
 
+TEST(UpsampleCloud, IrregularInputsPickByFpsAtAnySizeOthersByTheBudget) {
+    auto model = small_pugcn(4);
+    auto run = [&](const at::Tensor& cloud, std::optional<Selection> selection) {
+        UpsampleOptions options;
+        options.fps_budget = 1e5;  // as if the clouds were large
+        options.selection = selection;
+        return upsample_cloud(*model, cloud, options).points;
+    };
+    // Uniformly random points on a surface (a random subset of an even sample): FPS.
+    at::Tensor irregular = sphere_points(400, 12);
+    ASSERT_GT(spacing_spread(irregular), kMeasuredSpacingSpread);
+    ASSERT_LT(spacing_spread(irregular), kScanSpacingSpread);
+    at::Tensor fps = run(irregular, Selection::kFps);
+    EXPECT_EQ(fps.size(0), 1600);
+    EXPECT_TRUE(run(irregular, std::nullopt).equal(fps));
+    EXPECT_FALSE(run(irregular, Selection::kOwnership).equal(fps));
+    // An even sample beyond the budget: ownership, whose picks lie closer together.
+    at::Tensor even = fibonacci_sphere(400);
+    at::Tensor ownership = run(even, Selection::kOwnership);
+    EXPECT_EQ(ownership.size(0), 1600);
+    EXPECT_TRUE(run(even, std::nullopt).equal(ownership));
+    auto least_spacing = [](const at::Tensor& points) {
+        return knn(points, points, 2).sq_distances.select(1, 1).min().item<double>();
+    };
+    EXPECT_GT(least_spacing(run(even, Selection::kFps)), least_spacing(ownership));
+}
+
 TEST(UpsampleCloud, LineProjectionPutsOutputsOnTheLinesOfLineLikeInputs) {
     auto model = small_pugcn(4);
     // Two parallel lines of 150 points each, 0.5 apart: every neighbourhood is line-like.

@@ -65,6 +65,13 @@ void add_model_options(CLI::App& command, ModelArgs& args, bool oracle_unit) {
                     "neighbours are line-like (linearity above this, 0-1; 0 = off; default: "
                     "0.3 for scans, else off)")
         ->check(CLI::Range(0.0, 1.0));
+    command
+        .add_option("--select", args.select,
+                    "how the final points are picked from the patches' outputs: fps (even), "
+                    "ownership (follows the input's density) or auto (default: fps for irregularly "
+                    "spaced inputs that are not scans and for inputs up to about 10,000 points, "
+                    "else ownership)")
+        ->check(CLI::IsMember({"auto", "fps", "ownership"}));
     command.add_option("--device", args.device, "cpu or cuda");
 }
 
@@ -92,6 +99,8 @@ UpsampleOptions upsample_options(const ModelArgs& args, const ServedModel& serve
     if (args.spacing_bound) options.spacing_bound = *args.spacing_bound;
     if (args.whole_cloud) options.whole_cloud_points = *args.whole_cloud;
     if (args.line_projection) options.line_projection = *args.line_projection;
+    if (args.select != "auto")
+        options.selection = args.select == "fps" ? Selection::kFps : Selection::kOwnership;
     if (args.keep_input != "auto") options.keep_input = args.keep_input == "on";
     options.adaptation =
         adaptation_for(served.model.adaptation, served.model.meta_trained, overrides);

@@ -26,6 +26,7 @@ struct ModelArgs {
     std::optional<int64_t> whole_cloud;     // the backbone's choice; 0: patches
     std::string keep_input = "auto";        // on, off, auto
     std::optional<double> line_projection;  // automatic
+    std::string select = "auto";            // fps, ownership, auto
     std::string device = "cpu";
 };
 

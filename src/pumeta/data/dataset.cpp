@@ -49,6 +49,7 @@ void visit_fields(Self& c, Visit&& visit) {
     visit("test_fraction", c.test_fraction);
     visit("val_fraction", c.val_fraction);
     visit("seed", c.seed);
+    visit("case_inputs", c.case_inputs);
     visit("relative_noise", c.relative_noise);
     visit("absolute_noise", c.absolute_noise);
     visit("max_models_per_split", c.max_models_per_split);
@@ -100,6 +101,9 @@ DatasetConfig DatasetConfig::from_json(const nlohmann::json& j) {
             throw_input_error("dataset config", "scan split '{}' is listed twice", scan.split);
     for (int64_t r : c.ratios)
         if (r < 2) throw_input_error("dataset config", "ratio {} must be at least 2", r);
+    if (c.case_inputs != "poisson" && c.case_inputs != "gt_subset")
+        throw_input_error("dataset config", "case_inputs '{}' is not poisson or gt_subset",
+                          c.case_inputs);
     if (c.input_points < c.patch_points)
         throw_input_error("dataset config", "input_points {} < patch_points {}", c.input_points,
                           c.patch_points);
@@ -111,6 +115,7 @@ nlohmann::json DatasetConfig::to_json() const {
     // Without simulated scans the manifest's config reads as before they existed.
     if (scan_splits.empty())
         for (const char* field : kScanFields) j.erase(field);
+    if (case_inputs == "poisson") j.erase("case_inputs");  // as before the option existed
     return j;
 }
 
@@ -465,8 +470,12 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
             fs::path mesh_file = layout::case_mesh_path(out_dir, item.split, name);
             fs::create_directories(mesh_file.parent_path());
             write_mesh(mesh_file.string(), mesh);
-            PointCloud input = sample_poisson_disk(mesh, config.input_points,
-                                                   derive_seed(config.seed, id + "/input"));
+            const bool subset = config.case_inputs == "gt_subset";
+            const at::Tensor poisson =
+                subset ? at::Tensor()
+                       : sample_poisson_disk(mesh, config.input_points,
+                                             derive_seed(config.seed, id + "/input"))
+                             .points;
             for (int64_t r : config.ratios) {
                 fs::path dir = layout::cases_dir(out_dir, item.split, r) / name;
                 fs::create_directories(dir);
@@ -475,13 +484,18 @@ nlohmann::json make_dataset(const DatasetConfig& config, const std::string& out_
                                                     derive_seed(config.seed, id + "/gt/" + rs));
                 PointCloud gt_alt = sample_poisson_disk(
                     mesh, config.input_points * r, derive_seed(config.seed, id + "/gt_alt/" + rs));
-                write_point_cloud((dir / layout::kInputFile).string(), {input.points});
+                const at::Tensor input =
+                    subset ? gt.points.index_select(
+                                 0, random_subset(gt.size(), gt.size() / r,
+                                                  derive_seed(config.seed, id + "/in/" + rs)))
+                           : poisson;
+                write_point_cloud((dir / layout::kInputFile).string(), {input});
                 write_point_cloud((dir / layout::kGtFile).string(), {gt.points});
                 write_point_cloud((dir / layout::kGtAltFile).string(), {gt_alt.points});
-                nlohmann::json noisy = write_noisy_inputs(dir, input.points, config, id);
+                nlohmann::json noisy = write_noisy_inputs(dir, input, config, id);
                 nlohmann::json entry = {{"name", name},
                                         {"id", id},
-                                        {"n_in", input.size()},
+                                        {"n_in", input.size(0)},
                                         {"n_gt", gt.size()},
                                         {"mesh", layout::case_mesh_entry(name)},
                                         {"gt_alt", layout::kGtAltFile},

@@ -60,6 +60,10 @@ struct DatasetConfig {
     double val_fraction = 0.05;
     /// Seed of every sampling step (each mesh and case derives its own from it).
     uint64_t seed = 2023;
+    /// The inputs of the mesh cases (test and val): "poisson", a Poisson-disk sample of
+    /// input_points of the mesh (the paper's protocol), or "gt_subset", a random 1/r of each
+    /// ratio's ground truth (the protocol of the real and simulated scans, docs/data.md).
+    std::string case_inputs = "poisson";
     /// Noise variants of each test input: relative (percent) and absolute (sigma) protocols.
     std::vector<double> relative_noise = {0.5, 1.0, 2.0};
     std::vector<double> absolute_noise = {0.01, 0.02};

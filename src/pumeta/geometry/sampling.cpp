@@ -7,6 +7,8 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <numeric>
+#include <optional>
 #include <random>
 #include <vector>
 
@@ -125,7 +127,141 @@ void farthest_point_sampling_cpu(const float* xyz, int64_t n, int64_t m, int64_t
     }
 }
 
+/// The k-d tree of the pruned FPS: each node holds a range of the points in tree order, their
+/// bounding box and the farthest of them (original index).
+struct FpsNode {
+    float lo[3], hi[3];
+    Farthest best{std::numeric_limits<float>::infinity(), -1};
+    int64_t begin = 0, end = 0;
+    int32_t left = -1, right = -1;
+};
+
+/// Points per leaf of the pruned FPS's tree (bench_geometry_sampling).
+constexpr int64_t kFpsLeaf = 64;
+
+/// The better of two candidates: the larger distance, ties to the smaller original index.
+Farthest farther(const Farthest& a, const Farthest& b) {
+    if (a.sq_distance != b.sq_distance) return a.sq_distance > b.sq_distance ? a : b;
+    return a.index <= b.index ? a : b;
+}
+
+/// FPS with the same answer as farthest_point_sampling_cpu(), pruned by a k-d tree: a node
+/// whose box is no nearer to the new centre than its farthest point's running distance keeps
+/// every running distance of its points, so it is skipped. The work per pick falls from N to
+/// the points near the pick once picks are dense. Finite coordinates only; one thread.
+class PrunedFps {
+  public:
+    PrunedFps(const float* xyz, int64_t n) : xyz_(xyz), order_(n), min_sq_distance_(n) {
+        std::iota(order_.begin(), order_.end(), int64_t{0});
+        nodes_.reserve(static_cast<size_t>(4 * (n / kFpsLeaf + 1)));
+        build(0, n);
+        // Leaves in original index order, so that update_chunk's first-largest is the smallest
+        // original index within a leaf.
+        for (const FpsNode& node : nodes_)
+            if (node.left < 0) std::sort(order_.begin() + node.begin, order_.begin() + node.end);
+        std::vector<float> in_order(3 * n);
+        for (int64_t k = 0; k < n; ++k)
+            std::memcpy(&in_order[3 * k], xyz + 3 * order_[k], 3 * sizeof(float));
+        points_.emplace(in_order.data(), n);
+        std::fill(min_sq_distance_.begin(), min_sq_distance_.end(),
+                  std::numeric_limits<float>::infinity());
+    }
+
+    void run(int64_t m, int64_t start, int64_t* out) {
+        int64_t current = start;
+        for (int64_t i = 0; i < m; ++i) {
+            out[i] = current;
+            if (i + 1 == m) break;
+            update(0, xyz_ + 3 * current);
+            current = nodes_[0].best.index;
+        }
+    }
+
+  private:
+    int32_t build(int64_t begin, int64_t end) {
+        const auto id = static_cast<int32_t>(nodes_.size());
+        nodes_.emplace_back();
+        FpsNode node;
+        node.begin = begin;
+        node.end = end;
+        for (int axis = 0; axis < 3; ++axis) {
+            node.lo[axis] = std::numeric_limits<float>::infinity();
+            node.hi[axis] = -std::numeric_limits<float>::infinity();
+        }
+        for (int64_t k = begin; k < end; ++k)
+            for (int axis = 0; axis < 3; ++axis) {
+                const float v = xyz_[3 * order_[k] + axis];
+                node.lo[axis] = std::min(node.lo[axis], v);
+                node.hi[axis] = std::max(node.hi[axis], v);
+            }
+        if (end - begin > kFpsLeaf) {
+            int widest = 0;
+            for (int axis = 1; axis < 3; ++axis)
+                if (node.hi[axis] - node.lo[axis] > node.hi[widest] - node.lo[widest])
+                    widest = axis;
+            const int64_t middle = begin + (end - begin) / 2;
+            std::nth_element(
+                order_.begin() + begin, order_.begin() + middle, order_.begin() + end,
+                [&](int64_t a, int64_t b) { return xyz_[3 * a + widest] < xyz_[3 * b + widest]; });
+            node.left = build(begin, middle);
+            node.right = build(middle, end);
+        }
+        nodes_[id] = node;
+        return id;
+    }
+
+    /// A lower bound of the squared distance from `centre` to any point in the node's box, in
+    /// the distance update's arithmetic, shrunk by a relative 1e-6 so that no rounding (nor a
+    /// fused multiply-add in one form and not the other) can lift it above a point's own.
+    static float box_sq_distance(const FpsNode& node, const float* centre) {
+        float gap[3];
+        for (int axis = 0; axis < 3; ++axis) {
+            const float c = centre[axis];
+            gap[axis] = c < node.lo[axis] ? node.lo[axis] - c
+                                          : (c > node.hi[axis] ? c - node.hi[axis] : 0.f);
+        }
+        return (gap[0] * gap[0] + gap[1] * gap[1] + gap[2] * gap[2]) * (1.f - 1e-6f);
+    }
+
+    void update(int32_t id, const float* centre) {
+        FpsNode& node = nodes_[id];
+        if (box_sq_distance(node, centre) >= node.best.sq_distance) return;
+        if (node.left < 0) {
+            const Farthest f =
+                update_chunk(*points_, min_sq_distance_.data(), centre, node.begin, node.end);
+            node.best = {f.sq_distance, order_[f.index]};
+            return;
+        }
+        update(node.left, centre);
+        update(node.right, centre);
+        node.best = farther(nodes_[node.left].best, nodes_[node.right].best);
+    }
+
+    const float* xyz_;
+    std::vector<int64_t> order_;  ///< tree position -> original index
+    std::vector<float> min_sq_distance_;
+    std::optional<AxisArrays> points_;  ///< coordinates in tree order
+    std::vector<FpsNode> nodes_;
+};
+
 }  // namespace
+
+at::Tensor farthest_point_sampling_pruned(const at::Tensor& points, int64_t m, int64_t start) {
+    check_points(points, "farthest_point_sampling");
+    const int64_t n = points.size(0);
+    if (m < 0 || m > n)
+        throw_input_error("farthest_point_sampling", "cannot pick {} of {} points", m, n);
+    at::Tensor indices = at::empty({m}, at::kLong);
+    if (m == 0) return indices.to(points.device());
+    if (start < 0 || start >= n)
+        throw_input_error("farthest_point_sampling", "start index {} out of range [0, {})", start,
+                          n);
+    at::Tensor cpu = points.to(at::kCPU).contiguous();
+    if (!at::isfinite(cpu).all().item<bool>())
+        throw_input_error("farthest_point_sampling", "points have non-finite coordinates");
+    PrunedFps(cpu.data_ptr<float>(), n).run(m, start, indices.data_ptr<int64_t>());
+    return indices.to(points.device());
+}
 
 at::Tensor farthest_point_sampling(const at::Tensor& points, int64_t m, int64_t start) {
     check_points(points, "farthest_point_sampling");

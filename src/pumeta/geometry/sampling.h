@@ -18,6 +18,11 @@ namespace pumeta {
 /// points remain, indices may repeat. InputError when m > N.
 at::Tensor farthest_point_sampling(const at::Tensor& points, int64_t m, int64_t start = 0);
 
+/// farthest_point_sampling()'s answer by a k-d tree that skips the regions a pick cannot
+/// change: about N·log(m) distance updates instead of N·m once the picks are dense, on one
+/// thread. InputError also for non-finite coordinates.
+at::Tensor farthest_point_sampling_pruned(const at::Tensor& points, int64_t m, int64_t start = 0);
+
 /// Batched FPS on any device: points float32/float64 [B,N,3] -> int64 [B,m], starting at
 /// index 0 of each; the same answer as farthest_point_sampling() per element. float32 CPU
 /// input runs the CPU loop (elements in parallel), anything else tensor ops.

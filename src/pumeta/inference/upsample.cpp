@@ -28,19 +28,19 @@ double seconds_since(Clock::time_point start) {
     return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-/// Exactly `count` points out of candidates: FPS when affordable (fps_budget), else random
-/// removal or duplication of the few points by which `candidates` misses `count`.
+/// Whether (candidates × output points) is within the FPS budget (UpsampleOptions).
 bool fps_affordable(int64_t candidates, int64_t count, double budget) {
     return static_cast<double>(candidates) * static_cast<double>(count) <= budget;
 }
 
-at::Tensor select_exactly(const at::Tensor& candidates, int64_t count, double fps_budget,
-                          uint64_t seed) {
+/// Exactly `count` points out of candidates: FPS when `fps`, else random removal or
+/// duplication of the few points by which `candidates` misses `count`.
+at::Tensor select_exactly(const at::Tensor& candidates, int64_t count, bool fps, uint64_t seed) {
     int64_t m = candidates.size(0);
     if (m == count) return candidates;
     if (m == 0) throw InternalError("upsample: no candidate points to select from");
-    if (m > count && fps_affordable(m, count, fps_budget))
-        return candidates.index_select(0, farthest_point_sampling(candidates, count, 0));
+    if (m > count && fps)
+        return candidates.index_select(0, farthest_point_sampling_pruned(candidates, count, 0));
     if (m > count) return candidates.index_select(0, random_subset(m, count, seed));
     // Short by more than m (a merge that kept under half): whole copies first, then a random
     // subset for the rest.
@@ -153,17 +153,31 @@ AdaptationPairs cloud_scale_pairs(const Backbone& model, const at::Tensor& cloud
 struct ScanHandling {
     bool keep_input = false;
     double line_projection = 0;
+    std::optional<Selection> selection;
+    bool irregular = false;  ///< spaced irregularly but evenly dense: measured returns, subsets
+    double fps_budget = 0;
 
-    ScanHandling(const at::Tensor& cloud, const UpsampleOptions& options) {
-        if (options.keep_input && options.line_projection) {
+    ScanHandling(const at::Tensor& cloud, const UpsampleOptions& options)
+        : selection(options.selection), fps_budget(options.fps_budget) {
+        if (options.keep_input && options.line_projection && options.selection) {
             keep_input = *options.keep_input;
             line_projection = *options.line_projection;
             return;
         }
-        const InputKind kind = classify_input(cloud);
+        const double spread = spacing_spread(cloud);
+        const InputKind kind = classify_input(cloud, spread);
         const bool scan = kind == InputKind::kScan;
+        irregular = !scan && spread > kMeasuredSpacingSpread;
         keep_input = options.keep_input.value_or(kind != InputKind::kSampled);
         line_projection = options.line_projection.value_or(scan ? kScanLineLinearity : 0.0);
+    }
+
+    /// Whether FPS picks `count` of `candidates` points (else ownership, or at random where
+    /// there is none).
+    bool fps(int64_t candidates, int64_t count) const {
+        if (selection) return *selection == Selection::kFps;
+        if (irregular) return candidates <= kFpsMaxCandidates;
+        return fps_affordable(candidates, count, fps_budget);
     }
 
     /// The candidates [..., 3] after the line projection.
@@ -212,7 +226,7 @@ at::Tensor upsample_whole(const Backbone& model, const ParamMap& params, const a
     const ScanHandling scan(cloud, options);
     at::Tensor candidates = scan.place(cloud, at::cat(outputs)).contiguous();
     return scan.output(cloud, model.ratio(), [&](int64_t count) {
-        return select_exactly(candidates, count, options.fps_budget, options.seed);
+        return select_exactly(candidates, count, scan.fps(candidates.size(0), count), options.seed);
     });
 }
 
@@ -329,12 +343,12 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
     upsampled = scan.place(cloud, upsampled);
     return scan.output(cloud, r, [&](int64_t target) {
         at::Tensor candidates = upsampled.reshape({-1, 3}).contiguous();
-        if (fps_affordable(candidates.size(0), target, options.fps_budget))
-            return select_exactly(candidates, target, options.fps_budget, options.seed);
+        if (scan.fps(candidates.size(0), target))
+            return select_exactly(candidates, target, /*fps=*/true, options.seed);
         // The merge leaves about r·N points: the few extra or missing go at random (an FPS
         // over all of them to drop a few hundred would cost as much as the network).
         candidates = merge_by_ownership(cloud, patches, upsampled);
-        return select_exactly(candidates, target, /*fps_budget=*/0, options.seed);
+        return select_exactly(candidates, target, /*fps=*/false, options.seed);
     });
 }
 
@@ -363,7 +377,10 @@ double surface_thickness(const at::Tensor& cloud) {
 }
 
 InputKind classify_input(const at::Tensor& cloud) {
-    const double spread = spacing_spread(cloud);
+    return classify_input(cloud, spacing_spread(cloud));
+}
+
+InputKind classify_input(const at::Tensor& cloud, double spread) {
     if (spread > kScanSpacingSpread) return InputKind::kScan;
     if (spread > kMeasuredSpacingSpread && surface_thickness(cloud) < kMeasuredThickness)
         return InputKind::kMeasured;
@@ -457,9 +474,9 @@ at::Tensor midpoint_upsample(const at::Tensor& points, int64_t ratio, int64_t k,
                       0.5f;
     at::Tensor candidates = at::cat({points, mids.reshape({-1, 3})}).contiguous();
     const int64_t target = ratio * points.size(0);
-    if (candidates.size(0) <= target) return select_exactly(candidates, target, 0, 0);
+    if (candidates.size(0) <= target) return select_exactly(candidates, target, false, 0);
     if (fps_affordable(candidates.size(0), target, fps_budget))
-        return candidates.index_select(0, farthest_point_sampling(candidates, target, 0));
+        return candidates.index_select(0, farthest_point_sampling_pruned(candidates, target, 0));
     // The area the input covers, each point owning the hexagon of its nearest-neighbour
     // spacing d (area sqrt(3)/2 d^2), and the Poisson-disk radius of `target` points on it.
     const double spacing = nearest.sq_distances.select(1, 1).sqrt().mean().item<double>();
@@ -468,7 +485,7 @@ at::Tensor midpoint_upsample(const at::Tensor& points, int64_t ratio, int64_t k,
     const double r_max =
         2.0 * std::sqrt(area / static_cast<double>(target) / (2.0 * std::sqrt(3.0)));
     if (!(r_max > 0))  // every point duplicated: nothing to space out
-        return select_exactly(candidates, target, 0, 0);
+        return select_exactly(candidates, target, false, 0);
     return candidates.index_select(0, eliminate_samples(candidates, target, r_max));
 }
 

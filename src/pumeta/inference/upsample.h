@@ -22,7 +22,15 @@ namespace pumeta {
 /// The pipeline's version: raised whenever the same model, input and options give other
 /// points, so that cached results (eval/cell_cache.cpp) are recomputed. 2: every point in a
 /// patch; whole-cloud inference for PU-Dense. 3: measured returns keep their input points.
-inline constexpr int64_t kPipelineVersion = 3;
+/// 4: irregularly spaced inputs pick their outputs by FPS at any size.
+inline constexpr int64_t kPipelineVersion = 4;
+
+/// How a pass picks its exactly r·N output points from the patches' candidates.
+enum class Selection {
+    kFps,        ///< farthest point sampling over all candidates: an even output
+    kOwnership,  ///< each input point's patch keeps the candidates nearest to it (about r·N,
+                 ///< the few extra or missing at random): the output follows the input's density
+};
 
 struct UpsampleOptions {
     /// Output ratio; 0 = the model's. A power of the model's ratio (16 = 4 twice) applies the
@@ -36,11 +44,14 @@ struct UpsampleOptions {
     uint64_t seed = 0;
     /// Test-time adaptation before predicting (none by default).
     Adaptation adaptation;
-    /// Farthest point sampling picks the final points when (candidates × output points) is at
-    /// most this (its cost; 4e9 is about 6 s on one core); above it duplicates are first
-    /// removed by patch ownership, which is linear. 2,048 -> 8,192 (2e8), 2,048 -> 16,384
-    /// (8e8) and the second 4× pass of 16× (3.2e9) stay with FPS; 10k inputs at 4× (4.8e9)
-    /// take the merge.
+    /// The final selection. Unset: FPS up to kFpsMaxCandidates for irregularly spaced inputs
+    /// that are not scans (kMeasuredSpacingSpread < spacing_spread() <= kScanSpacingSpread:
+    /// measured returns, random subsets); for the others FPS when (candidates × output
+    /// points) is at most fps_budget, else ownership. 2,048 -> 8,192 (2e8), 2,048 -> 16,384
+    /// (8e8) and the second 4× pass of 16× (3.2e9) take FPS; 10k inputs at 4× (4.8e9)
+    /// ownership, which on large scans keeps the near field's density (docs/design.md,
+    /// "Large clouds").
+    std::optional<Selection> selection;
     double fps_budget = 4e9;
     /// Density-aware bound (0 = off): each output point is pulled towards its nearest input
     /// point p until it lies within spacing_bound × (the distance from p to p's nearest other
@@ -106,6 +117,8 @@ enum class InputKind {
                 ///< outputs onto scan lines
 };
 InputKind classify_input(const at::Tensor& cloud);
+/// The same with the cloud's spacing_spread() already computed.
+InputKind classify_input(const at::Tensor& cloud, double spread);
 /// "sampled", "measured" or "scan".
 const char* input_kind_name(InputKind kind);
 
@@ -114,6 +127,9 @@ inline constexpr double kScanSpacingSpread = 6.0;
 /// Above this spacing_spread() and below kMeasuredThickness, as measured returns.
 inline constexpr double kMeasuredSpacingSpread = 1.9;
 inline constexpr double kMeasuredThickness = 0.15;
+/// The most candidates the default selection gives to FPS (the pruned one: 200,000 -> 50,000
+/// in about 0.1 s).
+inline constexpr int64_t kFpsMaxCandidates = 4'000'000;
 /// The line projection's linearity threshold for scans.
 inline constexpr double kScanLineLinearity = 0.3;
 
