@@ -87,18 +87,21 @@ TEST(Cli, NumericOptionsAreValidatedWithOneLine) {
 
 // The same input and seed give the same bytes on any thread count, also with an OpenBLAS
 // kernel whose multi-threaded products round differently with the thread count (Haswell's,
-// where the CPU has it), with test-time adaptation and on a cloud large enough for the
-// ownership merge.
+// where the CPU has it), with test-time adaptation and on clouds large enough for either
+// final selection: an even one (Poisson disk) takes the ownership merge, an irregular one
+// (uniformly random points) the pruned FPS.
 TEST(Cli, UpsampleGivesTheSameBytesWithOneOrTwoThreads) {
     test::TempDir dir;
     write_point_cloud(dir.file("small.ply"), {sample_uniform(generate_shape(3), 2048, 1).points});
     write_point_cloud(dir.file("large.ply"), {sample_uniform(generate_shape(3), 12000, 2).points});
+    write_point_cloud(dir.file("large-even.ply"),
+                      {sample_poisson_disk(generate_shape(3), 12000, 2).points});
     std::vector<std::string> kernels = {"default"};
     if (test::read_file("/proc/cpuinfo").find(" avx2") != std::string::npos)
         kernels.push_back("Haswell");
     const std::string meta = test::source_dir() + "/models/pugcn-x4-meta.pt";
     for (const std::string& kernel : kernels)
-        for (const std::string& input : {"small", "large"}) {
+        for (const std::string& input : {"small", "large", "large-even"}) {
             std::string outputs[2];
             for (int threads : {1, 2}) {
                 outputs[threads - 1] = dir.file(input + std::to_string(threads) + ".ply");
