@@ -178,6 +178,40 @@ TEST_F(ReproduceTest, TableSevenHasTheModelsThatServeItsRatioPairedWithTheMidpoi
               std::string::npos);
 }
 
+TEST_F(ReproduceTest, TableEightHasTheScanSetsWithEveryBackboneAndItsPairedOurs) {
+    // The mesh sets stand in for scan sets here: the table only needs cases.
+    nlohmann::json j = *config_;
+    j["scan_sets"] = {"test-scans", "test-indist"};
+    j["scan_ratios"] = {4};
+    j["noise"] = nlohmann::json::array();
+    j["sweep_backbones"] = nlohmann::json::array();
+    j["zero_shot"]["max_cases"] = 0;
+    fs::path out = dir_->path() / "scans-table";
+    nlohmann::json tables = reproduce(ReproduceConfig::from_json(j, "quick"), out.string(), "test");
+
+    const nlohmann::json& t8 = tables.at("table8").at("x4");
+    std::vector<std::string> labels;
+    for (const nlohmann::json& r : t8.at("rows")) labels.push_back(r.at("label"));
+    // No sampling floor (scans have no second GT); Dis-PU has no model here.
+    EXPECT_EQ(labels, (std::vector<std::string>{"input, unchanged", "midpoint baseline", "copy",
+                                                "PU-GCN", "PU-GCN + ours (N = 2)"}));
+    const nlohmann::json& ours = row(t8, "PU-GCN + ours (N = 2)");
+    ASSERT_EQ(ours.at("cells").size(), 4u);  // CD and P2F of the two sets
+    nlohmann::json summary = read_json(out / "runs/test-indist-x4/pugcn-x4-meta.tta2/summary.json");
+    const double cd = summary["cd"]["mean"].get<double>();
+    EXPECT_NEAR(ours["cells"][2]["mean"].get<double>(), cd, 1e-8 * cd);
+    nlohmann::json plain = read_json(out / "runs/test-indist-x4/pugcn-x4/summary.json");
+    ASSERT_TRUE(ours["cells"][2].contains("vs_base"));
+    EXPECT_NEAR(ours["cells"][2]["vs_base"]["mean_difference"].get<double>(),
+                cd - plain["cd"]["mean"].get<double>(), 1e-6 * cd);
+    EXPECT_NE(test::read_file((out / "tables.md").string()).find("## Table VIII, 4×: scans"),
+              std::string::npos);
+    // Without scan sets there is no Table VIII.
+    EXPECT_FALSE(reproduce(config(), (dir_->path() / "no-scans").string(), "test",
+                           /*evaluate=*/false)
+                     .contains("table8"));
+}
+
 TEST_F(ReproduceTest, TableSevenTakesItsOwnBackbonesWithoutTheirOtherTables) {
     // any_ratio_backbones names Meta-PU for Table VII only: the other tables keep `backbones`.
     nlohmann::json j = any_ratio_config("models-any-ratio-only");

@@ -76,6 +76,7 @@ nlohmann::json tables_pass(const ReproduceConfig& config, CellCache& cells,
     write_table5(pass);
     write_table6(pass);
     write_table7(pass);
+    write_table8(pass);
     write_closing_sections(pass);
     pass.tables["markdown"] = pass.md().str();
     return pass.tables;

@@ -75,6 +75,8 @@ void reproduce_fields(Self& c, Visit&& visit) {
     visit("table3_ratios", c.table3_ratios);
     visit("any_ratios", c.any_ratios);
     visit("any_ratio_backbones", c.any_ratio_backbones);
+    visit("scan_sets", c.scan_sets);
+    visit("scan_ratios", c.scan_ratios);
     visit("sets", c.sets);
     visit("noise", c.noise);
     visit("noise_backbones", c.noise_backbones);

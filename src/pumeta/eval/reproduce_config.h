@@ -64,6 +64,12 @@ struct ReproduceConfig {
     /// Backbones of Table VII (empty = all of `backbones`). May name backbones outside
     /// `backbones`: Table VII has no adaptation, so such a row costs plain evaluations only.
     std::vector<std::string> any_ratio_backbones;
+    /// Sets of Table VIII (the scans table: every backbone, plain and "ours", against the
+    /// input, the midpoint and the external baselines), e.g. the simulated sweeps and the
+    /// aerial strips (docs/data.md); empty = no Table VIII.
+    std::vector<std::string> scan_sets;
+    /// Ratios of Table VIII.
+    std::vector<int64_t> scan_ratios = {4, 8};
     /// Test sets (layout::kTestSets), the column groups of Tables I, IV and VI; the first is
     /// the set of Tables II, III and V.
     std::vector<std::string> sets{layout::kTestSets.begin(), layout::kTestSets.end()};

@@ -36,8 +36,14 @@ const RunResult* TablePass::network(const std::string& set, int64_t ratio, const
 
 std::vector<const RunResult*> TablePass::per_set(
     const std::function<const RunResult*(const std::string&)>& run) const {
+    return per_set(config.sets, run);
+}
+
+std::vector<const RunResult*> TablePass::per_set(
+    const std::vector<std::string>& sets,
+    const std::function<const RunResult*(const std::string&)>& run) const {
     std::vector<const RunResult*> runs;
-    for (const std::string& set : config.sets) runs.push_back(run(set));
+    for (const std::string& set : sets) runs.push_back(run(set));
     return runs;
 }
 
@@ -67,19 +73,21 @@ std::string counts_line(TablePass& pass, int64_t ratio) {
     return text;
 }
 
-/// Rows of Table I that need no model: the input itself, the sampling floor, the midpoint
-/// baseline and the external baselines whose program exists.
-void table1_reference_rows(TablePass& pass, std::vector<TableWriter::Row>& rows) {
-    const int64_t r = pass.config.main_ratio;
+/// Rows that need no model at ratio r on `sets`: the input itself, the sampling floor (where
+/// the cases have a second GT sample), the midpoint baseline and the external baselines whose
+/// program exists.
+void reference_rows(TablePass& pass, const std::vector<std::string>& sets, int64_t r, bool floor,
+                    std::vector<TableWriter::Row>& rows) {
     auto reference_row = [&](const std::string& label, const std::string& method) {
         rows.push_back({label,
-                        pass.per_set([&](const std::string& set) {
-                            return &pass.cells.get(pass.spec(set, r, method));
-                        }),
+                        pass.per_set(sets,
+                                     [&](const std::string& set) {
+                                         return &pass.cells.get(pass.spec(set, r, method));
+                                     }),
                         {}});
     };
     reference_row("input, unchanged", "input");
-    reference_row("sampling floor (2nd GT sample)", "floor");
+    if (floor) reference_row("sampling floor (2nd GT sample)", "floor");
     reference_row("midpoint baseline", "midpoint");
     for (const ExternalBaseline& baseline : pass.config.external_baselines) {
         std::string command = with_bindir(baseline.command);
@@ -91,14 +99,15 @@ void table1_reference_rows(TablePass& pass, std::vector<TableWriter::Row>& rows)
             continue;
         }
         rows.push_back({baseline.label,
-                        pass.per_set([&](const std::string& set) {
-                            RunSpec s = pass.spec(set, r, "external");
-                            s.label = baseline.label;
-                            // The template: a cell's identity does not depend on where
-                            // this binary was run from.
-                            s.command = baseline.command;
-                            return &pass.cells.get(s);
-                        }),
+                        pass.per_set(sets,
+                                     [&](const std::string& set) {
+                                         RunSpec s = pass.spec(set, r, "external");
+                                         s.label = baseline.label;
+                                         // The template: a cell's identity does not depend on where
+                                         // this binary was run from.
+                                         s.command = baseline.command;
+                                         return &pass.cells.get(s);
+                                     }),
                         {}});
     }
 }
@@ -120,7 +129,7 @@ void write_table1(TablePass& pass) {
     pass.md() << "## Table I: " << r << "× on every test set\n\n"
               << "Data: " << counts_line(pass, r) << ".\n\n";
     std::vector<TableWriter::Row> rows;
-    table1_reference_rows(pass, rows);
+    reference_rows(pass, config.sets, r, /*floor=*/true, rows);
     for (const std::string& backbone : config.backbones) {
         const auto found = pass.backbone_models(backbone, r);  // named: lambdas below use them
         const auto& plain = found.first;
@@ -375,6 +384,42 @@ void write_table7(TablePass& pass) {
                 fmt::format("Table VII, {}×: no model in {} serves it", ratio, config.models_dir));
         pass.writer.table(fmt::format("Table VII, {}×", ratio), config.sets, {kCd, kHd, kPsnr},
                           rows, pass.tables["table7"][fmt::format("x{}", ratio)]);
+    }
+}
+
+void write_table8(TablePass& pass) {
+    const ReproduceConfig& config = pass.config;
+    if (config.scan_sets.empty()) return;
+    for (int64_t r : config.scan_ratios) {
+        pass.md() << "## Table VIII, " << r << "×: scans\n\n"
+                  << "The scan sets (docs/data.md: ground truth = the whole sweep or strip, input "
+                     "= a random 1/r of it) through the default pipeline, which treats scans and "
+                     "measured returns as docs/design.md (\"Scans\") says; each \"ours\" row is "
+                     "paired with its plain backbone.\n\n";
+        std::vector<TableWriter::Row> rows;
+        reference_rows(pass, config.scan_sets, r, /*floor=*/false, rows);
+        for (const std::string& backbone : config.backbones) {
+            const auto found = pass.backbone_models(backbone, r);
+            const auto& plain = found.first;
+            const auto& meta = found.second;
+            if (!plain) continue;
+            TableWriter::Row base{config.label_of(backbone),
+                                  pass.per_set(config.scan_sets,
+                                               [&](const std::string& set) {
+                                                   return pass.network(set, r, *plain, 0);
+                                               }),
+                                  {}};
+            rows.push_back(base);
+            if (!meta) continue;
+            rows.push_back({config.label_of(backbone) + " + ours (" + pass.n_label() + ")",
+                            pass.per_set(config.scan_sets,
+                                         [&](const std::string& set) {
+                                             return pass.network(set, r, *meta, config.tta_steps);
+                                         }),
+                            base.runs});
+        }
+        pass.writer.table(fmt::format("Table VIII, {}×", r), config.scan_sets, {kCd, kP2f}, rows,
+                          pass.tables["table8"][fmt::format("x{}", r)]);
     }
 }
 

@@ -41,8 +41,11 @@ struct TablePass {
     const RunResult* network(const std::string& set, int64_t ratio, const std::string& model,
                              int64_t steps, std::optional<double> lr = std::nullopt,
                              const std::string& noise = "");
-    /// One run per set of config.sets (the column groups of Tables I and IV).
+    /// One run per set of config.sets (the column groups of Tables I and IV), or of `sets`.
     std::vector<const RunResult*> per_set(
+        const std::function<const RunResult*(const std::string&)>& run) const;
+    std::vector<const RunResult*> per_set(
+        const std::vector<std::string>& sets,
         const std::function<const RunResult*(const std::string&)>& run) const;
     /// The plain and the meta-trained model of a backbone at a ratio; a missing one is noted.
     std::pair<std::optional<std::string>, std::optional<std::string>> backbone_models(
@@ -63,5 +66,7 @@ void write_table5(TablePass& pass);
 void write_table6(TablePass& pass);
 /// Table VII (beyond the paper): ratios only any-ratio models serve, on every test set.
 void write_table7(TablePass& pass);
+/// Table VIII (beyond the paper): the scan sets (config.scan_sets) at each scan ratio.
+void write_table8(TablePass& pass);
 
 }  // namespace pumeta
