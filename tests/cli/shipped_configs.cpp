@@ -1,6 +1,6 @@
 // Every config the repository ships (configs/*.json) is read by the parser of its command
-// (by name: dataset, reproduce, *-meta for meta-train, the rest train), and every training
-// config's backbone builds: a field renamed in the code, or a value edited by hand, fails here
+// (by name: dataset, reproduce and reproduce-*, *-meta for meta-train, the rest train), and
+// every training config's backbone builds: a field renamed in the code, or a value edited by hand, fails here
 // rather than hours into a run on a user's machine.
 #include <gtest/gtest.h>
 
@@ -46,7 +46,7 @@ TEST(ShippedConfigs, EachParsesWithItsCommandAndItsBackboneBuilds) {
             nlohmann::json j = nlohmann::json::parse(test::read_file(file.string()));
             if (name == "dataset") {
                 DatasetConfig::from_json(j);
-            } else if (name == "reproduce") {
+            } else if (name == "reproduce" || name.rfind("reproduce-", 0) == 0) {
                 for (const char* budget : {"quick", "full"}) ReproduceConfig::from_json(j, budget);
             } else if (ends_with(name, "-meta")) {
                 MetaTrainConfig::from_json(j);
