@@ -1,7 +1,7 @@
 // Every config the repository ships (configs/*.json) is read by the parser of its command
 // (by name: dataset, reproduce and reproduce-*, *-meta for meta-train, the rest train), and
-// every training config's backbone builds: a field renamed in the code, or a value edited by hand, fails here
-// rather than hours into a run on a user's machine.
+// every training config's backbone builds: a field renamed in the code, or a value edited by hand,
+// fails here rather than hours into a run on a user's machine.
 #include <gtest/gtest.h>
 
 #include <algorithm>
