@@ -62,9 +62,11 @@ TEST(UniformRandomPoints, FillTheCubeAndRepeatPerSeed) {
 
 TEST(FarthestPointSampling, EqualsTheTextbookAlgorithm) {
     at::Tensor points = uniform_random_points(2000, 1);
-    for (int64_t start : {0, 17, 1999})
-        EXPECT_EQ(to_vector(farthest_point_sampling(points, 150, start)),
-                  naive_fps<float>(points, 150, start));
+    for (int64_t start : {0, 17, 1999}) {
+        const std::vector<int64_t> textbook = naive_fps<float>(points, 150, start);
+        EXPECT_EQ(to_vector(farthest_point_sampling(points, 150, start)), textbook);
+        EXPECT_EQ(to_vector(farthest_point_sampling_pruned(points, 150, start)), textbook);
+    }
 }
 
 TEST(FarthestPointSampling, ParallelPathEqualsTheTextbookAlgorithm) {
@@ -101,13 +103,6 @@ TEST(FarthestPointSampling, AllPointsGivesAPermutationAndBadInputThrows) {
     EXPECT_THROW(farthest_point_sampling(points, 5, 300), InputError);
     EXPECT_THROW(farthest_point_sampling(points, 5, -1), InputError);
     EXPECT_THROW(farthest_point_sampling(at::zeros({5, 2}), 1), InputError);
-}
-
-TEST(FarthestPointSampling, PrunedEqualsTheTextbookAlgorithm) {
-    at::Tensor points = uniform_random_points(2000, 1);
-    for (int64_t start : {0, 17, 1999})
-        EXPECT_EQ(to_vector(farthest_point_sampling_pruned(points, 150, start)),
-                  naive_fps<float>(points, 150, start));
 }
 
 TEST(FarthestPointSampling, PrunedEqualsTheFullScanOnLargeClouds) {

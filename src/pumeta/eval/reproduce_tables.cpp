@@ -121,6 +121,31 @@ void rows_only_for(TablePass& pass, const std::vector<std::string>& only, const 
     pass.md() << " (`" << field << "`: the others cost too much time here).";
 }
 
+/// Each backbone's plain row at ratio r on `sets`, and its "+ ours" row paired with it.
+void backbone_rows(TablePass& pass, const std::vector<std::string>& sets, int64_t r,
+                   std::vector<TableWriter::Row>& rows) {
+    const ReproduceConfig& config = pass.config;
+    for (const std::string& backbone : config.backbones) {
+        const auto found = pass.backbone_models(backbone, r);  // named: lambdas below use them
+        const auto& plain = found.first;
+        const auto& meta = found.second;
+        if (!plain) continue;
+        TableWriter::Row base{
+            config.label_of(backbone),
+            pass.per_set(sets,
+                         [&](const std::string& set) { return pass.network(set, r, *plain, 0); }),
+            {}};
+        rows.push_back(base);
+        if (!meta) continue;
+        rows.push_back({config.label_of(backbone) + " + ours (" + pass.n_label() + ")",
+                        pass.per_set(sets,
+                                     [&](const std::string& set) {
+                                         return pass.network(set, r, *meta, config.tta_steps);
+                                     }),
+                        base.runs});
+    }
+}
+
 }  // namespace
 
 void write_table1(TablePass& pass) {
@@ -130,23 +155,7 @@ void write_table1(TablePass& pass) {
               << "Data: " << counts_line(pass, r) << ".\n\n";
     std::vector<TableWriter::Row> rows;
     reference_rows(pass, config.sets, r, /*floor=*/true, rows);
-    for (const std::string& backbone : config.backbones) {
-        const auto found = pass.backbone_models(backbone, r);  // named: lambdas below use them
-        const auto& plain = found.first;
-        const auto& meta = found.second;
-        if (!plain) continue;
-        TableWriter::Row base{
-            config.label_of(backbone),
-            pass.per_set([&](const std::string& set) { return pass.network(set, r, *plain, 0); }),
-            {}};
-        rows.push_back(base);
-        if (!meta) continue;
-        rows.push_back({config.label_of(backbone) + " + ours (" + pass.n_label() + ")",
-                        pass.per_set([&](const std::string& set) {
-                            return pass.network(set, r, *meta, config.tta_steps);
-                        }),
-                        base.runs});
-    }
+    backbone_rows(pass, config.sets, r, rows);
     nlohmann::json& t1 = pass.tables["table1"];
     pass.writer.table("Table I", config.sets, {kCd, kPsnr}, rows, t1);
     pass.md() << "Extended (Hausdorff and point-to-surface distances):\n\n";
@@ -398,26 +407,7 @@ void write_table8(TablePass& pass) {
                      "paired with its plain backbone.\n\n";
         std::vector<TableWriter::Row> rows;
         reference_rows(pass, config.scan_sets, r, /*floor=*/false, rows);
-        for (const std::string& backbone : config.backbones) {
-            const auto found = pass.backbone_models(backbone, r);
-            const auto& plain = found.first;
-            const auto& meta = found.second;
-            if (!plain) continue;
-            TableWriter::Row base{config.label_of(backbone),
-                                  pass.per_set(config.scan_sets,
-                                               [&](const std::string& set) {
-                                                   return pass.network(set, r, *plain, 0);
-                                               }),
-                                  {}};
-            rows.push_back(base);
-            if (!meta) continue;
-            rows.push_back({config.label_of(backbone) + " + ours (" + pass.n_label() + ")",
-                            pass.per_set(config.scan_sets,
-                                         [&](const std::string& set) {
-                                             return pass.network(set, r, *meta, config.tta_steps);
-                                         }),
-                            base.runs});
-        }
+        backbone_rows(pass, config.scan_sets, r, rows);
         pass.writer.table(fmt::format("Table VIII, {}×", r), config.scan_sets, {kCd, kP2f}, rows,
                           pass.tables["table8"][fmt::format("x{}", r)]);
     }

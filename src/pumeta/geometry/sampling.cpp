@@ -244,9 +244,10 @@ class PrunedFps {
     std::vector<FpsNode> nodes_;
 };
 
-}  // namespace
-
-at::Tensor farthest_point_sampling_pruned(const at::Tensor& points, int64_t m, int64_t start) {
+/// FPS's argument checks and its CPU copy of the points; calls `pick(xyz, n, indices)` for
+/// m >= 1 and returns the indices on the points' device.
+template <typename Pick>
+at::Tensor fps_on_cpu(const at::Tensor& points, int64_t m, int64_t start, Pick&& pick) {
     check_points(points, "farthest_point_sampling");
     const int64_t n = points.size(0);
     if (m < 0 || m > n)
@@ -257,25 +258,24 @@ at::Tensor farthest_point_sampling_pruned(const at::Tensor& points, int64_t m, i
         throw_input_error("farthest_point_sampling", "start index {} out of range [0, {})", start,
                           n);
     at::Tensor cpu = points.to(at::kCPU).contiguous();
-    if (!at::isfinite(cpu).all().item<bool>())
-        throw_input_error("farthest_point_sampling", "points have non-finite coordinates");
-    PrunedFps(cpu.data_ptr<float>(), n).run(m, start, indices.data_ptr<int64_t>());
+    pick(cpu, n, indices.data_ptr<int64_t>());
     return indices.to(points.device());
 }
 
+}  // namespace
+
+at::Tensor farthest_point_sampling_pruned(const at::Tensor& points, int64_t m, int64_t start) {
+    return fps_on_cpu(points, m, start, [&](const at::Tensor& cpu, int64_t n, int64_t* out) {
+        if (!at::isfinite(cpu).all().item<bool>())
+            throw_input_error("farthest_point_sampling", "points have non-finite coordinates");
+        PrunedFps(cpu.data_ptr<float>(), n).run(m, start, out);
+    });
+}
+
 at::Tensor farthest_point_sampling(const at::Tensor& points, int64_t m, int64_t start) {
-    check_points(points, "farthest_point_sampling");
-    const int64_t n = points.size(0);
-    if (m < 0 || m > n)
-        throw_input_error("farthest_point_sampling", "cannot pick {} of {} points", m, n);
-    at::Tensor indices = at::empty({m}, at::kLong);
-    if (m == 0) return indices.to(points.device());
-    if (start < 0 || start >= n)
-        throw_input_error("farthest_point_sampling", "start index {} out of range [0, {})", start,
-                          n);
-    at::Tensor cpu = points.to(at::kCPU).contiguous();
-    farthest_point_sampling_cpu(cpu.data_ptr<float>(), n, m, start, indices.data_ptr<int64_t>());
-    return indices.to(points.device());
+    return fps_on_cpu(points, m, start, [&](const at::Tensor& cpu, int64_t n, int64_t* out) {
+        farthest_point_sampling_cpu(cpu.data_ptr<float>(), n, m, start, out);
+    });
 }
 
 at::Tensor farthest_point_sampling_batched(const at::Tensor& points, int64_t m) {
