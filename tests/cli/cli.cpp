@@ -168,6 +168,7 @@ TEST(Cli, InfoJsonAndSample) {
     EXPECT_EQ(c["input_kind"], "sampled");
     EXPECT_GT(c["spacing_spread"].get<double>(), 1.0);
     EXPECT_GE(c["surface_thickness"].get<double>(), 0.0);
+    EXPECT_GE(c["surface_roughness"].get<double>(), 0.0);
     auto text = test::run_cli({"info", dir.file("s.ply")});
     EXPECT_NE(text.out.find("taken for: sampled"), std::string::npos) << text.out;
     // More points than a tiny cloud has is a clear error, not a crash.

@@ -241,11 +241,34 @@ TEST(UpsampleCloud, SurfaceThicknessIsSmallOnPlanesAndGrowsWithNoise) {
     EXPECT_EQ(surface_thickness(at::zeros({40, 3})), 0.0);  // all coincident
 }
 
+TEST(UpsampleCloud, SurfaceRoughnessIsSmallOnNoiseFreeCurvedPointsAndGrowsWithNoise) {
+    // 300 random points on a sphere: curved at their spacing (thick), yet on a quadric.
+    at::Tensor exact = sphere_points(300, 13);
+    EXPECT_GT(surface_thickness(exact), kMeasuredThickness);
+    EXPECT_LT(surface_roughness(exact), kExactRoughness / 3);
+    at::Generator gen = at::detail::createCPUGenerator(14);
+    at::Tensor noisy = exact + 0.02f * at::randn(exact.sizes(), gen);  // about 0.2 spacings
+    EXPECT_GT(surface_roughness(noisy), 2 * kExactRoughness);
+    EXPECT_LT(surface_roughness(gridded_returns(0.0, 1)), kExactRoughness / 3);
+    EXPECT_GT(surface_roughness(gridded_returns(0.5, 1)), 2 * kExactRoughness);
+    // Large clouds are measured on a strided subset: still near 0 when noise-free.
+    EXPECT_LT(surface_roughness(sphere_points(120'000, 15)), kExactRoughness / 3);
+    EXPECT_EQ(surface_roughness(at::zeros({8, 3})), 0.0);
+    EXPECT_EQ(surface_roughness(at::zeros({40, 3})), 0.0);  // all coincident
+}
+
 TEST(UpsampleCloud, ClassifiesEvenSamplesMeasuredReturnsAndScans) {
     EXPECT_EQ(classify_input(fibonacci_sphere(500)), InputKind::kSampled);
     EXPECT_EQ(classify_input(gridded_returns(0.05, 2)), InputKind::kMeasured);
     // Irregular but noisy across the surface as much as along it: a sample, not returns.
     EXPECT_EQ(classify_input(gridded_returns(0.5, 2)), InputKind::kSampled);
+    // Noise-free random points on a curved surface (a random subset of a dense sample): thick
+    // at their spacing, but on it; with noise, a sample.
+    at::Tensor subset = sphere_points(300, 13);
+    ASSERT_GT(spacing_spread(subset), kMeasuredSpacingSpread);
+    EXPECT_EQ(classify_input(subset), InputKind::kMeasured);
+    at::Generator gen = at::detail::createCPUGenerator(14);
+    EXPECT_EQ(classify_input(subset + 0.02f * at::randn(subset.sizes(), gen)), InputKind::kSampled);
     EXPECT_EQ(classify_input(scan_like(400, 200, 9)), InputKind::kScan);
     EXPECT_STREQ(input_kind_name(InputKind::kMeasured), "measured");
 }

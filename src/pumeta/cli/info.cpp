@@ -41,6 +41,7 @@ nlohmann::json geometry_info(const std::string& path, const ReadOptions& read) {
         // this much are treated as scans (docs/design.md, "Scans").
         info["spacing_spread"] = spacing_spread(points);
         info["surface_thickness"] = surface_thickness(points);
+        info["surface_roughness"] = surface_roughness(points);
         info["input_kind"] = input_kind_name(classify_input(points));
     }
     return info;
@@ -112,8 +113,10 @@ void print_text(const nlohmann::json& info) {
         std::cout << fmt::format(
             "  spacing spread (q90/q10 of nearest-neighbour distance): {:.3g}\n"
             "  surface thickness (spread across the surface / spacing): {:.3g}\n"
+            "  surface roughness (q10 of the distance off a local quadric / spacing): {:.3g}\n"
             "  taken for: {}{}\n",
-            info["spacing_spread"].get<double>(), info["surface_thickness"].get<double>(), kind,
+            info["spacing_spread"].get<double>(), info["surface_thickness"].get<double>(),
+            info["surface_roughness"].get<double>(), kind,
             kind == "scan"       ? " (upsample keeps the input points and follows scan lines)"
             : kind == "measured" ? " (upsample keeps the input points)"
                                  : " (an even sample of a surface)");

@@ -376,13 +376,40 @@ double surface_thickness(const at::Tensor& cloud) {
     return least.median().item<double>() / spacing;
 }
 
+double surface_roughness(const at::Tensor& cloud) {
+    check_points(cloud, "surface_roughness", 1);
+    constexpr int64_t kNeighbours = 16;
+    constexpr int64_t kMaxQueries = 50'000;
+    const int64_t n = cloud.size(0);
+    if (n < kNeighbours) return 0.0;
+    // The 10th percentile of a few tens of thousands of points is as good as all of them.
+    const int64_t stride = (n + kMaxQueries - 1) / kMaxQueries;
+    at::Tensor queries = stride > 1 ? cloud.slice(0, 0, n, stride).contiguous() : cloud;
+    KnnResult nn = knn(cloud, queries, kNeighbours);
+    const double spacing =
+        nn.sq_distances.select(1, 1).sqrt().to(at::kDouble).median().item<double>();
+    if (!(spacing > 0)) return 0.0;
+    at::Tensor neighbours =
+        cloud.index_select(0, nn.indices.flatten()).view({-1, kNeighbours, 3}).to(at::kDouble);
+    at::Tensor centred = (neighbours - neighbours.mean(1, /*keepdim=*/true)) / spacing;
+    // In the frame of each neighbourhood's principal axes: height h over the plane (u, v).
+    at::Tensor axes = std::get<1>(at::linalg_eigh(centred.transpose(1, 2).matmul(centred)));
+    at::Tensor local = centred.matmul(axes);
+    at::Tensor h = local.select(2, 0), v = local.select(2, 1), u = local.select(2, 2);
+    at::Tensor design = at::stack({u * u, u * v, v * v, u, v, at::ones_like(u)}, 2);
+    at::Tensor fit = std::get<0>(at::linalg_lstsq(design, h.unsqueeze(2)));
+    at::Tensor residual = (h - design.matmul(fit).squeeze(2)).square().mean(1).sqrt();
+    return at::quantile(residual, 0.1).item<double>();
+}
+
 InputKind classify_input(const at::Tensor& cloud) {
     return classify_input(cloud, spacing_spread(cloud));
 }
 
 InputKind classify_input(const at::Tensor& cloud, double spread) {
     if (spread > kScanSpacingSpread) return InputKind::kScan;
-    if (spread > kMeasuredSpacingSpread && surface_thickness(cloud) < kMeasuredThickness)
+    if (spread > kMeasuredSpacingSpread && (surface_thickness(cloud) < kMeasuredThickness ||
+                                            surface_roughness(cloud) < kExactRoughness))
         return InputKind::kMeasured;
     return InputKind::kSampled;
 }
