@@ -15,13 +15,11 @@
 #include <CGAL/mst_orient_normals.h>
 #include <CGAL/property_map.h>
 
-#include <cstdio>
-#include <cstdlib>
-#include <fstream>
-#include <sstream>
 #include <string>
 #include <utility>
 #include <vector>
+
+#include "common/xyz.h"
 
 namespace {
 
@@ -29,37 +27,19 @@ using Kernel = CGAL::Simple_cartesian<double>;
 using Point = Kernel::Point_3;
 using Vector = Kernel::Vector_3;
 using PointWithNormal = std::pair<Point, Vector>;
-
-int fail(int code, const std::string& message) {
-    std::fprintf(stderr, "pumeta-ear: error: %s\n", message.c_str());
-    return code;
-}
+constexpr const char* kProgram = "pumeta-ear";
 
 }  // namespace
 
 int main(int argc, char** argv) {
-    if (argc != 5 || std::string(argv[3]) != "--ratio")
-        return fail(2, "usage: pumeta-ear INPUT.xyz OUTPUT.xyz --ratio R");
-    const std::string input = argv[1], output = argv[2];
-    const long ratio = std::strtol(argv[4], nullptr, 10);
-    if (ratio < 2) return fail(2, std::string("--ratio must be an integer >= 2, found ") + argv[4]);
-
-    std::ifstream in(input);
-    if (!in) return fail(2, input + ": cannot open");
+    using namespace pumeta::tools;
+    Arguments args;
+    if (auto error = parse_arguments(argc, argv, kProgram, args)) return fail(kProgram, 2, *error);
+    std::vector<Xyz> read;
+    if (auto error = read_xyz(args.input, read, 20, "EAR")) return fail(kProgram, 2, *error);
     std::vector<PointWithNormal> points;
-    std::string line;
-    for (long number = 1; std::getline(in, line); ++number) {
-        std::istringstream fields(line);
-        double x, y, z;
-        if (!(fields >> x >> y >> z)) {
-            if (line.find_first_not_of(" \t\r") == std::string::npos) continue;
-            return fail(2, input + ": line " + std::to_string(number) + ": expected x y z");
-        }
-        points.push_back({Point(x, y, z), Vector(0, 0, 0)});
-    }
-    if (points.size() < 20)
-        return fail(
-            2, input + ": " + std::to_string(points.size()) + " points; EAR needs at least 20");
+    points.reserve(read.size());
+    for (const Xyz& p : read) points.push_back({Point(p[0], p[1], p[2]), Vector(0, 0, 0)});
 
     try {
         auto point_map = CGAL::First_of_pair_property_map<PointWithNormal>();
@@ -69,7 +49,7 @@ int main(int argc, char** argv) {
         CGAL::mst_orient_normals(points, 18, params);
         const double spacing = CGAL::compute_average_spacing<CGAL::Sequential_tag>(
             points, 6, CGAL::parameters::point_map(point_map));
-        const std::size_t target = points.size() * static_cast<std::size_t>(ratio);
+        const std::size_t target = points.size() * static_cast<std::size_t>(args.ratio);
         CGAL::edge_aware_upsample_point_set<CGAL::Sequential_tag>(
             points, std::back_inserter(points),
             CGAL::parameters::point_map(point_map)
@@ -79,16 +59,12 @@ int main(int argc, char** argv) {
                 .neighbor_radius(3 * spacing)
                 .number_of_output_points(target));
     } catch (const std::exception& e) {
-        return fail(1, std::string("CGAL failed: ") + e.what());
+        return fail(kProgram, 1, std::string("CGAL failed: ") + e.what());
     }
 
-    const std::string tmp = output + ".tmp";
-    {
-        std::ofstream out(tmp);
-        out.precision(9);
-        for (const auto& [p, n] : points) out << p.x() << " " << p.y() << " " << p.z() << "\n";
-        if (!out) return fail(2, output + ": cannot write");
-    }
-    if (std::rename(tmp.c_str(), output.c_str()) != 0) return fail(2, output + ": cannot write");
+    std::vector<Xyz> produced;
+    produced.reserve(points.size());
+    for (const auto& [p, n] : points) produced.push_back({p.x(), p.y(), p.z()});
+    if (auto error = write_xyz(args.output, produced)) return fail(kProgram, 2, *error);
     return 0;
 }
