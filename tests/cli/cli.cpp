@@ -168,9 +168,11 @@ TEST(Cli, InfoJsonAndSample) {
     EXPECT_EQ(c["input_kind"], "sampled");
     EXPECT_GT(c["spacing_spread"].get<double>(), 1.0);
     EXPECT_GE(c["surface_thickness"].get<double>(), 0.0);
-    EXPECT_GE(c["surface_roughness"].get<double>(), 0.0);
+    // Noise-free samples of flat faces: on a quadric (kExactRoughness = 0.03).
+    EXPECT_LT(c["surface_roughness"].get<double>(), 0.03);
     auto text = test::run_cli({"info", dir.file("s.ply")});
     EXPECT_NE(text.out.find("taken for: sampled"), std::string::npos) << text.out;
+    EXPECT_NE(text.out.find("surface roughness"), std::string::npos) << text.out;
     // More points than a tiny cloud has is a clear error, not a crash.
     auto too_many =
         test::run_cli({"sample", dir.file("cube.off"), "-n", "0", "-o", dir.file("t.ply")});

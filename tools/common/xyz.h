@@ -74,6 +74,7 @@ inline std::optional<std::string> write_xyz(const std::string& path,
         std::ofstream out(tmp);
         out.precision(9);
         for (const Xyz& p : points) out << p[0] << " " << p[1] << " " << p[2] << "\n";
+        out.close();  // so that an error of the final flush is seen too
         if (!out) {
             std::remove(tmp.c_str());
             return path + ": cannot write";

@@ -16,9 +16,11 @@
 #include <pcl/search/kdtree.h>
 #include <pcl/surface/mls.h>
 
+#include <Eigen/Core>
 #include <algorithm>
 #include <cmath>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -119,6 +121,8 @@ int main(int argc, char** argv) {
     } catch (const std::exception& e) {
         return fail(kProgram, 1, std::string("PCL failed: ") + e.what());
     }
+    // PCL reports some failures on stderr only, leaving no fits: not an empty output.
+    if (fitted.empty()) return fail(kProgram, 1, "PCL produced no points");
     const std::size_t target = cloud->size() * static_cast<std::size_t>(args.ratio);
     std::vector<std::size_t> order(fitted.size());
     for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;

@@ -39,10 +39,11 @@ nlohmann::json geometry_info(const std::string& path, const ReadOptions& read) {
     if (!geometry.is_mesh() && geometry.cloud.size() >= 3) {
         // What `pumeta upsample` decides from: inputs whose nearest-neighbour spacing varies
         // this much are treated as scans (docs/design.md, "Scans").
-        info["spacing_spread"] = spacing_spread(points);
+        const double spread = spacing_spread(points);
+        info["spacing_spread"] = spread;
         info["surface_thickness"] = surface_thickness(points);
         info["surface_roughness"] = surface_roughness(points);
-        info["input_kind"] = input_kind_name(classify_input(points));
+        info["input_kind"] = input_kind_name(classify_input(points, spread));
     }
     return info;
 }

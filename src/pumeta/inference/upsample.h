@@ -112,8 +112,9 @@ double surface_thickness(const at::Tensor& cloud);
 /// nearest-neighbour distance; at most 50,000 evenly strided points are measured (0 for
 /// N < 16 or coincident points). A quadric follows a surface's curvature, so noise-free
 /// samples score near 0 however curved at their spacing (a tenth of the points on smooth
-/// parts is enough): 0.000–0.016 for random 25,000- and 12,500-point subsets of `val`
-/// objects, against 0.05–0.6 for the same with noise of 0.5–2 % (docs/design.md, "Scans").
+/// parts is enough): 0.000–0.016 for 17 of 24 random 25,000- and 12,500-point subsets of
+/// `val` objects (the other 7, with fine detail at their spacing, 0.15–0.55), against
+/// 0.05–0.6 for the same with noise of 0.5–2 % (docs/design.md, "Scans").
 double surface_roughness(const at::Tensor& cloud);
 
 /// What the pipeline takes an input for (docs/design.md, "Scans").
