@@ -42,9 +42,14 @@ TEST(UpsampleCloud, InputsSmallerThanAPatchWork) {
 TEST(UpsampleCloud, OwnershipMergeGivesExactCountOnLargeInputs) {
     auto model = small_pugcn(4);
     UpsampleOptions options;
-    options.fps_budget = 1e5;  // force the merge used for huge clouds
+    // The merge used for huge even clouds, asked for: these random points are irregular,
+    // which by default takes FPS at any size and keeps the input points.
+    options.selection = Selection::kOwnership;
+    options.keep_input = false;
     UpsampleResult result = upsample_cloud(*model, sphere_points(2000, 3), options);
     EXPECT_EQ(result.points.size(0), 8000);
+    options.keep_input = true;
+    EXPECT_EQ(upsample_cloud(*model, sphere_points(2000, 3), options).points.size(0), 8000);
 }
 
 TEST(UpsampleCloud, SameSeedSameOutputAndModelUnchangedByAdaptation) {
