@@ -66,6 +66,15 @@ inline std::optional<std::string> read_xyz(const std::string& path, std::vector<
     return std::nullopt;
 }
 
+/// The arguments and the input's points (at least `least`, for `method`): 0, else the exit
+/// code after saying what is wrong.
+inline int load_input(int argc, char** argv, const char* program, std::size_t least,
+                      const char* method, Arguments& args, std::vector<Xyz>& points) {
+    if (auto error = parse_arguments(argc, argv, program, args)) return fail(program, 2, *error);
+    if (auto error = read_xyz(args.input, points, least, method)) return fail(program, 2, *error);
+    return 0;
+}
+
 /// Writes `points` to `path` through `path`.tmp, or returns the message.
 inline std::optional<std::string> write_xyz(const std::string& path,
                                             const std::vector<Xyz>& points) {

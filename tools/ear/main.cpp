@@ -34,9 +34,8 @@ constexpr const char* kProgram = "pumeta-ear";
 int main(int argc, char** argv) {
     using namespace pumeta::tools;
     Arguments args;
-    if (auto error = parse_arguments(argc, argv, kProgram, args)) return fail(kProgram, 2, *error);
     std::vector<Xyz> read;
-    if (auto error = read_xyz(args.input, read, 20, "EAR")) return fail(kProgram, 2, *error);
+    if (int code = load_input(argc, argv, kProgram, 20, "EAR", args, read)) return code;
     std::vector<PointWithNormal> points;
     points.reserve(read.size());
     for (const Xyz& p : read) points.push_back({Point(p[0], p[1], p[2]), Vector(0, 0, 0)});

@@ -66,9 +66,8 @@ double median_neighbours(const Cloud::Ptr& cloud, double radius) {
 int main(int argc, char** argv) {
     using namespace pumeta::tools;
     Arguments args;
-    if (auto error = parse_arguments(argc, argv, kProgram, args)) return fail(kProgram, 2, *error);
     std::vector<Xyz> read;
-    if (auto error = read_xyz(args.input, read, 20, "MLS")) return fail(kProgram, 2, *error);
+    if (int code = load_input(argc, argv, kProgram, 20, "MLS", args, read)) return code;
     Cloud::Ptr cloud(new Cloud);
     for (const Xyz& p : read)
         cloud->push_back(pcl::PointXYZ(static_cast<float>(p[0]), static_cast<float>(p[1]),

@@ -40,10 +40,11 @@ nlohmann::json geometry_info(const std::string& path, const ReadOptions& read) {
         // What `pumeta upsample` decides from: inputs whose nearest-neighbour spacing varies
         // this much are treated as scans (docs/design.md, "Scans").
         const double spread = spacing_spread(points);
+        const SurfaceShape shape = surface_shape(points);
         info["spacing_spread"] = spread;
-        info["surface_thickness"] = surface_thickness(points);
-        info["surface_roughness"] = surface_roughness(points);
-        info["input_kind"] = input_kind_name(classify_input(points, spread));
+        info["surface_thickness"] = shape.thickness;
+        info["surface_roughness"] = shape.roughness;
+        info["input_kind"] = input_kind_name(classify_input(spread, shape));
     }
     return info;
 }

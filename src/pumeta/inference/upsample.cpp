@@ -51,12 +51,19 @@ at::Tensor select_exactly(const at::Tensor& candidates, int64_t count, bool fps,
     return at::cat({repeated, extra});
 }
 
-/// The scatter matrix Σ (q − q̄)(q − q̄)ᵀ over each point's neighbours q: cloud [N,3],
-/// indices int64 [N,k] into it -> float64 [N,3,3].
-at::Tensor neighbourhood_scatter(const at::Tensor& cloud, const at::Tensor& indices) {
+/// Each point's neighbours q − q̄, centred on their mean: cloud [N,3], indices int64 [N,k]
+/// into it -> float64 [N,k,3].
+at::Tensor centred_neighbours(const at::Tensor& cloud, const at::Tensor& indices) {
     at::Tensor neighbours = cloud.index_select(0, indices.flatten()).view({-1, indices.size(1), 3});
-    at::Tensor centred = (neighbours - neighbours.mean(1, /*keepdim=*/true)).to(at::kDouble);
-    return centred.transpose(1, 2).matmul(centred);
+    return (neighbours - neighbours.mean(1, /*keepdim=*/true)).to(at::kDouble);
+}
+
+/// The scatter matrix Σ (q − q̄)(q − q̄)ᵀ of centred neighbours [N,k,3] -> [N,3,3].
+at::Tensor scatter(const at::Tensor& centred) { return centred.transpose(1, 2).matmul(centred); }
+
+/// The scatter matrix over each point's neighbours: cloud [N,3], indices [N,k] -> [N,3,3].
+at::Tensor neighbourhood_scatter(const at::Tensor& cloud, const at::Tensor& indices) {
+    return scatter(centred_neighbours(cloud, indices));
 }
 
 /// Pulls every output point q towards its nearest input point p until
@@ -363,53 +370,56 @@ double spacing_spread(const at::Tensor& cloud) {
     return low > 0 ? high / low : (high > 0 ? std::numeric_limits<double>::infinity() : 1.0);
 }
 
-double surface_thickness(const at::Tensor& cloud) {
-    check_points(cloud, "surface_thickness", 1);
+SurfaceShape surface_shape(const at::Tensor& cloud) {
+    check_points(cloud, "surface_shape", 1);
     constexpr int64_t kNeighbours = 16;
-    if (cloud.size(0) < kNeighbours) return 0.0;
-    KnnResult nn = knn(cloud, cloud, kNeighbours);
-    const double spacing =
-        nn.sq_distances.select(1, 1).sqrt().to(at::kDouble).median().item<double>();
-    if (!(spacing > 0)) return 0.0;
-    at::Tensor covariance = neighbourhood_scatter(cloud, nn.indices) / kNeighbours;
-    at::Tensor least = at::linalg_eigvalsh(covariance).select(1, 0).clamp_min(0).sqrt();
-    return least.median().item<double>() / spacing;
-}
-
-double surface_roughness(const at::Tensor& cloud) {
-    check_points(cloud, "surface_roughness", 1);
-    constexpr int64_t kNeighbours = 16;
-    constexpr int64_t kMaxQueries = 50'000;
+    constexpr int64_t kMaxFits = 50'000;
     const int64_t n = cloud.size(0);
-    if (n < kNeighbours) return 0.0;
-    // The 10th percentile of a few tens of thousands of points is as good as all of them.
-    const int64_t stride = (n + kMaxQueries - 1) / kMaxQueries;
-    at::Tensor queries = stride > 1 ? cloud.slice(0, 0, n, stride).contiguous() : cloud;
-    KnnResult nn = knn(cloud, queries, kNeighbours);
-    const double spacing =
-        nn.sq_distances.select(1, 1).sqrt().to(at::kDouble).median().item<double>();
-    if (!(spacing > 0)) return 0.0;
-    at::Tensor neighbours =
-        cloud.index_select(0, nn.indices.flatten()).view({-1, kNeighbours, 3}).to(at::kDouble);
-    at::Tensor centred = (neighbours - neighbours.mean(1, /*keepdim=*/true)) / spacing;
-    // In the frame of each neighbourhood's principal axes: height h over the plane (u, v).
-    at::Tensor axes = std::get<1>(at::linalg_eigh(centred.transpose(1, 2).matmul(centred)));
-    at::Tensor local = centred.matmul(axes);
+    if (n < kNeighbours) return {};
+    KnnResult nn = knn(cloud, cloud, kNeighbours);
+    at::Tensor nearest = nn.sq_distances.select(1, 1).sqrt().to(at::kDouble);
+    const double spacing = nearest.median().item<double>();
+    if (!(spacing > 0)) return {};
+    at::Tensor centred = centred_neighbours(cloud, nn.indices);
+    auto [values, axes] = at::linalg_eigh(scatter(centred) / kNeighbours);
+    SurfaceShape shape;
+    shape.thickness = values.select(1, 0).clamp_min(0).sqrt().median().item<double>() / spacing;
+
+    // The quadric fits on at most kMaxFits evenly strided points: the 10th percentile of a few
+    // tens of thousands is as good as all of them. In the frame of each neighbourhood's
+    // principal axes (eigh's ascending order: the normal first): height h over (u, v).
+    const int64_t stride = (n + kMaxFits - 1) / kMaxFits;
+    at::Tensor rows = at::arange(0, n, stride, at::kLong);
+    const double fit_spacing = nearest.index_select(0, rows).median().item<double>();
+    if (!(fit_spacing > 0)) return shape;
+    at::Tensor local =
+        centred.index_select(0, rows).matmul(axes.index_select(0, rows)) / fit_spacing;
     at::Tensor h = local.select(2, 0), v = local.select(2, 1), u = local.select(2, 2);
     at::Tensor design = at::stack({u * u, u * v, v * v, u, v, at::ones_like(u)}, 2);
     at::Tensor fit = std::get<0>(at::linalg_lstsq(design, h.unsqueeze(2)));
     at::Tensor residual = (h - design.matmul(fit).squeeze(2)).square().mean(1).sqrt();
-    return at::quantile(residual, 0.1).item<double>();
+    shape.roughness = at::quantile(residual, 0.1).item<double>();
+    return shape;
 }
+
+double surface_thickness(const at::Tensor& cloud) { return surface_shape(cloud).thickness; }
+
+double surface_roughness(const at::Tensor& cloud) { return surface_shape(cloud).roughness; }
 
 InputKind classify_input(const at::Tensor& cloud) {
     return classify_input(cloud, spacing_spread(cloud));
 }
 
 InputKind classify_input(const at::Tensor& cloud, double spread) {
+    if (spread > kScanSpacingSpread || spread <= kMeasuredSpacingSpread)
+        return classify_input(spread, SurfaceShape{});
+    return classify_input(spread, surface_shape(cloud));
+}
+
+InputKind classify_input(double spread, const SurfaceShape& shape) {
     if (spread > kScanSpacingSpread) return InputKind::kScan;
-    if (spread > kMeasuredSpacingSpread && (surface_thickness(cloud) < kMeasuredThickness ||
-                                            surface_roughness(cloud) < kExactRoughness))
+    if (spread > kMeasuredSpacingSpread &&
+        (shape.thickness < kMeasuredThickness || shape.roughness < kExactRoughness))
         return InputKind::kMeasured;
     return InputKind::kSampled;
 }

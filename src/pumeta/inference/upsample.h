@@ -98,23 +98,31 @@ struct UpsampleResult {
 /// line scans, about 4.7 for uniformly random points on a surface, 9–11 for simulated 32-beam
 /// sweeps.
 double spacing_spread(const at::Tensor& cloud);
-/// How thin the surface the points of cloud [N,3] lie on is against their spacing: the median
-/// over points of the standard deviation along the least direction of their 16 nearest
-/// neighbours (sqrt of the least eigenvalue of the neighbourhood covariance), over the median
-/// nearest-neighbour distance (0 for N < 16 or coincident points). About 0.04–0.08 for
-/// simulated aerial scans (roofs and ground, planar at their spacing), 0.03–0.7 for the
-/// 2,048-point samples of meshes (median 0.5: curved at that spacing), 0.3–0.8 with noise of
-/// the order of the spacing.
+/// The shape of the surface the points of cloud [N,3] lie on, against their spacing, from
+/// each point's 16 nearest neighbours (one k-NN and one eigen-decomposition for both).
+struct SurfaceShape {
+    /// How thin: the median over points of the standard deviation along the least direction
+    /// of their neighbours (sqrt of the least eigenvalue of the neighbourhood covariance),
+    /// over the median nearest-neighbour distance. About 0.04–0.08 for simulated aerial scans
+    /// (roofs and ground, planar at their spacing), 0.03–0.7 for the 2,048-point samples of
+    /// meshes (median 0.5: curved at that spacing), 0.3–0.8 with noise of the order of the
+    /// spacing.
+    double thickness = 0;
+    /// How far off a smooth surface: the 10th percentile over points of the RMS residual of a
+    /// quadric height field fitted to their neighbours (over the neighbourhood's principal
+    /// plane), over the median nearest-neighbour distance; at most 50,000 evenly strided
+    /// points are fitted. A quadric follows a surface's curvature, so noise-free samples score
+    /// near 0 however curved at their spacing (a tenth of the points on smooth parts is
+    /// enough): 0.000–0.016 for 17 of 24 random 25,000- and 12,500-point subsets of `val`
+    /// objects (the other 7, with fine detail at their spacing, 0.15–0.55), against 0.05–0.6
+    /// for the same with noise of 0.5–2 % (docs/design.md, "Scans").
+    double roughness = 0;
+};
+/// Both 0 for N < 16 or coincident points.
+SurfaceShape surface_shape(const at::Tensor& cloud);
+/// surface_shape(cloud).thickness.
 double surface_thickness(const at::Tensor& cloud);
-/// How far the points of cloud [N,3] lie off a smooth surface against their spacing: the
-/// 10th percentile over points of the RMS residual of a quadric height field fitted to their
-/// 16 nearest neighbours (over the neighbourhood's principal plane), over the median
-/// nearest-neighbour distance; at most 50,000 evenly strided points are measured (0 for
-/// N < 16 or coincident points). A quadric follows a surface's curvature, so noise-free
-/// samples score near 0 however curved at their spacing (a tenth of the points on smooth
-/// parts is enough): 0.000–0.016 for 17 of 24 random 25,000- and 12,500-point subsets of
-/// `val` objects (the other 7, with fine detail at their spacing, 0.15–0.55), against
-/// 0.05–0.6 for the same with noise of 0.5–2 % (docs/design.md, "Scans").
+/// surface_shape(cloud).roughness.
 double surface_roughness(const at::Tensor& cloud);
 
 /// What the pipeline takes an input for (docs/design.md, "Scans").
@@ -130,8 +138,11 @@ enum class InputKind {
                 ///< outputs onto scan lines
 };
 InputKind classify_input(const at::Tensor& cloud);
-/// The same with the cloud's spacing_spread() already computed.
+/// The same with the cloud's spacing_spread() already computed (its surface_shape() is then
+/// computed only where the spread leaves the kind open).
 InputKind classify_input(const at::Tensor& cloud, double spread);
+/// The same from the cloud's spacing_spread() and surface_shape().
+InputKind classify_input(double spread, const SurfaceShape& shape);
 /// "sampled", "measured" or "scan".
 const char* input_kind_name(InputKind kind);
 
