@@ -1,14 +1,17 @@
 // The public benchmarks' formats end to end through the binary: `pumeta eval --benchmark` on
 // miniature PU-GAN and PU1K test folders (scores checked against a brute-force computation
-// here), `train` and `meta-train` on an HDF5 patch file, and one-line errors for bad input.
+// here), the same on three of the public PU-GAN test meshes when ../shared holds them, `train`
+// and `meta-train` on an HDF5 patch file, and one-line errors for bad input.
 #include <ATen/ATen.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <sstream>
 
+#include "geometry/mesh_oracles.h"
 #include "metrics/metric_oracles.h"
 #include "pumeta/geometry/io.h"
 #include "pumeta/geometry/sampling.h"
@@ -131,6 +134,96 @@ TEST(CliBenchmark, EvalScoresEachObjectWithThePublishedProtocol) {
     EXPECT_TRUE(summary["p2f_1e3"].is_number());
     EXPECT_NE(summary["note"].get<std::string>().find("1 of 2"), std::string::npos);
     EXPECT_NE(summary["protocol"].get<std::string>().find("own unit sphere"), std::string::npos);
+}
+
+/// Mean distance of `points` to the mesh, by brute force over every face (exact
+/// point-to-triangle distances, mesh_oracles.h).
+double brute_force_p2f(const at::Tensor& points, const TriangleMesh& mesh) {
+    const at::Tensor p = points.to(at::kDouble).contiguous();
+    const at::Tensor corners =
+        mesh.vertices.to(at::kDouble).index_select(0, mesh.faces.flatten()).contiguous();
+    const double* c = corners.data_ptr<double>();
+    auto a = p.accessor<double, 2>();
+    double sum = 0;
+    for (int64_t i = 0; i < p.size(0); ++i) {
+        const test::Vec3 q{a[i][0], a[i][1], a[i][2]};
+        double best = std::numeric_limits<double>::infinity();
+        for (int64_t f = 0; f < mesh.num_faces(); ++f) {
+            const double* t = c + 9 * f;
+            best =
+                std::min(best, test::point_triangle_sq_distance(
+                                   q, {t[0], t[1], t[2]}, {t[3], t[4], t[5]}, {t[6], t[7], t[8]}));
+        }
+        sum += std::sqrt(best);
+    }
+    return sum / static_cast<double>(p.size(0));
+}
+
+// The benchmark command on real data: three of the 21 public PU-GAN test meshes (evaluation
+// only; skipped without ../shared), the midpoint baseline and a shipped model, every score
+// recomputed here from the saved predictions by brute force: nearest neighbours over all
+// pairs, exact point-to-triangle distances over all faces, P2F in the mesh's own coordinates.
+TEST(CliBenchmark, PublicPuganMeshesScoreAsAnIndependentComputation) {
+    const fs::path shared =
+        fs::path(test::source_dir()) / ".." / "shared" / "benchmarks" / "pugan-test";
+    if (!fs::is_directory(shared / "input_2048")) GTEST_SKIP() << "no " << shared.string();
+    test::TempDir dir;
+    const fs::path data = dir.path() / "pugan";
+    const std::vector<std::string> names = {"camel", "fandisk", "star"};
+    for (const std::string folder : {"input_2048", "gt_8192", "original_meshes"}) {
+        fs::create_directories(data / folder);
+        for (const std::string& name : names) {
+            const std::string file = name + (folder == "original_meshes" ? ".off" : ".xyz");
+            fs::create_symlink(fs::absolute(shared / folder / file), data / folder / file);
+        }
+    }
+    const std::string model = test::source_dir() + "/models/pugcn-x4.pt";
+    for (const std::vector<std::string>& method : {std::vector<std::string>{"--method", "midpoint"},
+                                                   std::vector<std::string>{"--model", model}}) {
+        const std::string out = dir.file("out-" + method[0].substr(2));
+        std::vector<std::string> args = {
+            "--threads",   "1",       "eval", "--benchmark",        "pugan", "--data",
+            data.string(), "--ratio", "4",    "--save-predictions", "-o",    out};
+        args.insert(args.end(), method.begin(), method.end());
+        const auto r = test::run_cli(args);
+        ASSERT_EQ(r.exit_code, 0) << r.err;
+        const auto rows = read_csv(out + "/cases.csv");
+        ASSERT_EQ(rows.size(), 4u) << method[1];
+        double p2f_sum = 0;
+        for (size_t i = 1; i < rows.size(); ++i) {
+            const std::string& name = rows[i][0];
+            const at::Tensor pred = read_point_cloud(out + "/pred/" + name + ".xyz").points;
+            const at::Tensor gt =
+                read_point_cloud((shared / "gt_8192" / (name + ".xyz")).string()).points;
+            const at::Tensor input =
+                read_point_cloud((shared / "input_2048" / (name + ".xyz")).string()).points;
+            const TriangleMesh mesh =
+                read_mesh((shared / "original_meshes" / (name + ".off")).string());
+            // Exactly 8,192 points, no position twice (the midpoint's old padding repeated one
+            // point hundreds of times).
+            ASSERT_EQ(pred.size(0), 8192) << method[1] << " " << name;
+            EXPECT_EQ(count_distinct_points(pred), 8192) << method[1] << " " << name;
+            const at::Tensor p = own_unit_sphere(pred), g = own_unit_sphere(gt);
+            const double cd = (test::mean(test::brute_force_sq_distances(p, g)) +
+                               test::mean(test::brute_force_sq_distances(g, p))) *
+                              1e3;
+            EXPECT_NEAR(std::stod(rows[i][4]), cd, 1e-3 * cd) << method[1] << " " << name;
+            const double p2f = brute_force_p2f(pred, mesh) * 1e3;
+            EXPECT_NEAR(std::stod(rows[i][7]), p2f, 1e-3 * p2f) << method[1] << " " << name;
+            p2f_sum += p2f * static_cast<double>(pred.size(0));
+            // Both methods are closer to the ground truth than their input.
+            const at::Tensor q = own_unit_sphere(input);
+            const double input_cd = (test::mean(test::brute_force_sq_distances(q, g)) +
+                                     test::mean(test::brute_force_sq_distances(g, q))) *
+                                    1e3;
+            EXPECT_LT(cd, input_cd) << method[1] << " " << name;
+        }
+        const auto summary = nlohmann::json::parse(test::read_file(out + "/summary.json"));
+        const double pooled = p2f_sum / (3 * 8192);
+        EXPECT_NEAR(summary["p2f_1e3"].get<double>(), pooled, 1e-3 * pooled) << method[1];
+        EXPECT_NE(summary["protocol"].get<std::string>().find("mesh's own coordinates"),
+                  std::string::npos);
+    }
 }
 
 TEST(CliBenchmark, EvalRunsTheMidpointBaselineAndANetworkOnPu1kNesting) {

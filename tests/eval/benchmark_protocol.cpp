@@ -75,13 +75,15 @@ TEST(BenchmarkProtocol, AShiftedScaledCopyScoresZeroButItsP2fSeesTheShift) {
     const BenchmarkScores scores = score_benchmark_object(pred, gt, &square);
     EXPECT_NEAR(scores.cd, 0.0, 1e-10);
     EXPECT_NEAR(scores.hd, 0.0, 1e-5);
-    // P2F in the GT's frame: pred's height 0.3 over the plane divided by the GT's radius, and
-    // pred's in-plane doubling does not leave the (large) square.
+    // P2F in the mesh's own coordinates, as the published tables: pred's height 0.3 over the
+    // plane, whatever the GT's radius, and pred's in-plane doubling does not leave the (large)
+    // square.
     const at::Tensor g = gt.to(at::kDouble);
     const double radius = (g - g.mean(0)).norm(2, 1).max().item<double>();
+    ASSERT_GT(std::abs(radius - 1.0), 0.1);  // a frame change would show
     ASSERT_EQ(scores.p2f.size(0), 400);
-    EXPECT_NEAR(scores.p2f.min().item<double>(), 0.3 / radius, 1e-5);
-    EXPECT_NEAR(scores.p2f.max().item<double>(), 0.3 / radius, 1e-5);
+    EXPECT_NEAR(scores.p2f.min().item<double>(), 0.3, 1e-5);
+    EXPECT_NEAR(scores.p2f.max().item<double>(), 0.3, 1e-5);
 }
 
 TEST(BenchmarkProtocol, P2fToACubeMatchesKnownDistances) {

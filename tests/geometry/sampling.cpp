@@ -324,5 +324,36 @@ TEST(SampleUniform, SeededAndValidated) {
     EXPECT_THROW(sample_uniform(broken, 10, 5), InputError);
 }
 
+// Against a brute-force pairwise comparison: first occurrences only, in order, -0 equal to 0,
+// and nothing that `exclude` holds.
+TEST(DistinctPoints, KeepsFirstOccurrencesNotInExcludeAsBruteForce) {
+    at::Tensor base = uniform_random_points(50, 31);
+    at::Tensor points =
+        at::cat({base.slice(0, 0, 5), base, base.slice(0, 10, 30)}).flip(0).contiguous();
+    // One copy each of base[29] and base[28] become 0 and -0.
+    points[0] = at::tensor({0.f, 0.f, 0.f});
+    points[1] = at::tensor({-0.f, 0.f, -0.f});
+    const at::Tensor exclude = base.slice(0, 40, 45);
+    auto expected = [&](const at::Tensor& ex) {
+        std::vector<int64_t> kept;
+        for (int64_t i = 0; i < points.size(0); ++i) {
+            bool seen = false;
+            for (int64_t j = 0; j < i && !seen; ++j) seen = points[j].equal(points[i]);
+            for (int64_t j = 0; ex.defined() && j < ex.size(0) && !seen; ++j)
+                seen = ex[j].equal(points[i]);
+            if (!seen) kept.push_back(i);
+        }
+        return kept;
+    };
+    auto as_vector = [](const at::Tensor& t) {
+        return std::vector<int64_t>(t.data_ptr<int64_t>(), t.data_ptr<int64_t>() + t.numel());
+    };
+    // equal() compares values, so 0 and -0 are one point there too.
+    EXPECT_EQ(as_vector(distinct_points(points)), expected({}));
+    EXPECT_EQ(as_vector(distinct_points(points, exclude)), expected(exclude));
+    EXPECT_EQ(count_distinct_points(points), 51);  // base and the zero
+    EXPECT_EQ(distinct_points(at::empty({0, 3})).numel(), 0);
+}
+
 }  // namespace
 }  // namespace pumeta

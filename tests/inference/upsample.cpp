@@ -5,7 +5,9 @@
 
 #include <cmath>
 
+#include "geometry/mesh_oracles.h"
 #include "pumeta/core/error.h"
+#include "pumeta/data/shapes.h"
 #include "pumeta/geometry/knn.h"
 #include "pumeta/geometry/sampling.h"
 #include "pumeta/metrics/metrics.h"
@@ -352,6 +354,67 @@ TEST(UpsampleCloud, LineProjectionPutsOutputsOnTheLinesOfLineLikeInputs) {
     EXPECT_GT(
         at::minimum(free.select(1, 1).abs(), (free.select(1, 1) - 0.5).abs()).max().item<double>(),
         1e-3);
+}
+
+/// 2,048 Poisson-disk points of a procedural mesh, as the PU-GAN test inputs are made.
+at::Tensor pugan_like_input(uint64_t seed, int64_t n = 2048) {
+    return sample_poisson_disk(generate_shape(seed), n, seed + 1).points;
+}
+
+// The published baseline on a PU-GAN-like input: every one of the r·N points distinct (the
+// candidate pool of midpoints from the 2r nearest holds repeats, since a pair of mutual
+// neighbours gives one midpoint twice, and FPS once padded the output with one of them), the
+// centroid where the input's is, and closer to a dense sample of the surface than the input.
+TEST(MidpointUpsample, PuganLikeInputGivesDistinctPointsAroundTheSameCentroid) {
+    const TriangleMesh mesh = generate_shape(3);
+    const at::Tensor input = sample_poisson_disk(mesh, 2048, 4).points;
+    for (int64_t r : {4, 16}) {
+        at::Tensor out = midpoint_upsample(input, r);
+        ASSERT_EQ(out.size(0), r * 2048) << r;
+        EXPECT_EQ(count_distinct_points(out), r * 2048) << r;
+        const double radius = (input - input.mean(0)).norm(2, 1).max().item<double>();
+        EXPECT_LT((out.mean(0) - input.mean(0)).norm().item<double>(), 0.01 * radius) << r;
+        const at::Tensor dense = sample_poisson_disk(mesh, r * 2048, 5).points;
+        EXPECT_LT(chamfer_distance(out, dense), 0.75 * chamfer_distance(input, dense)) << r;
+    }
+}
+
+// Where the candidates hold fewer distinct points than asked for (few neighbours), midpoints
+// between them make more instead of repeats; only an input that repeats its points repeats.
+TEST(MidpointUpsample, TooFewCandidatesAreJoinedByMoreMidpointsNotRepeats) {
+    const at::Tensor input = sphere_points(200, 11);
+    at::Tensor out = midpoint_upsample(input, 8, /*k=*/1);
+    ASSERT_EQ(out.size(0), 1600);
+    EXPECT_EQ(count_distinct_points(out), 1600);
+    const at::Tensor one_place = at::zeros({5, 3}, at::kFloat);
+    EXPECT_EQ(midpoint_upsample(one_place, 4).size(0), 20);
+}
+
+// The network path: whichever way the count is reached (FPS, the ownership merge, with or
+// without the input kept, whole-cloud inference), no position is returned twice.
+TEST(UpsampleCloud, NoPathRepeatsAPoint) {
+    auto model = small_pugcn(4);
+    const at::Tensor input = pugan_like_input(7, 600);
+    struct Case {
+        const char* name;
+        Selection selection;
+        bool keep_input;
+        int64_t whole_cloud;
+    };
+    for (const Case& c :
+         {Case{"fps", Selection::kFps, false, 0}, Case{"fps keep-input", Selection::kFps, true, 0},
+          Case{"ownership", Selection::kOwnership, false, 0},
+          Case{"ownership keep-input", Selection::kOwnership, true, 0},
+          Case{"whole cloud", Selection::kFps, false, 1 << 20},
+          Case{"whole cloud keep-input", Selection::kOwnership, true, 1 << 20}}) {
+        UpsampleOptions options;
+        options.selection = c.selection;
+        options.keep_input = c.keep_input;
+        if (c.whole_cloud) options.whole_cloud_points = c.whole_cloud;
+        const at::Tensor out = upsample_cloud(*model, input, options).points;
+        ASSERT_EQ(out.size(0), 2400) << c.name;
+        EXPECT_EQ(count_distinct_points(out), 2400) << c.name;
+    }
 }
 
 TEST(MidpointUpsample, ExactCountAndPointsBetweenNeighbours) {

@@ -416,6 +416,27 @@ TEST_P(Conformance, TestTimeAdaptationLeavesTheStoredModelUnchanged) {
         EXPECT_TRUE(p.is_leaf() && p.requires_grad() && !p.grad().defined()) << name;
 }
 
+TEST_P(Conformance, UpsampledCloudsHoldExactlyRatioTimesNDistinctPoints) {
+    auto model = this->model();
+    model->update_buffers(patches(*model, 2, 22), model->parameters());
+    const int64_t points = 3 * model->patch_size() + 7;
+    at::Tensor cloud = uniform_random_points(points, 23);
+    cloud = cloud / cloud.norm(2, 1, true);
+    for (Selection selection : {Selection::kFps, Selection::kOwnership}) {
+        for (bool keep_input : {false, true}) {
+            UpsampleOptions options;
+            options.selection = selection;
+            options.keep_input = keep_input;
+            const at::Tensor out = upsample_cloud(*model, cloud, options).points;
+            const int64_t expected = model->ratio() * points;
+            ASSERT_EQ(out.size(0), expected);
+            EXPECT_EQ(count_distinct_points(out), expected)
+                << (selection == Selection::kFps ? "fps" : "ownership")
+                << (keep_input ? ", input kept" : "");
+        }
+    }
+}
+
 INSTANTIATE_TEST_SUITE_P(Registered, Conformance, ::testing::ValuesIn(registered_backbones()),
                          test_name);
 

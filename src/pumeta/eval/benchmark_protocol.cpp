@@ -25,10 +25,11 @@ BenchmarkScores score_benchmark_object(const at::Tensor& pred, const at::Tensor&
     scores.hd_legacy = hausdorff_distance_legacy(own_pred, own_gt);
     if (mesh) {
         check_points(mesh->vertices, "mesh vertices", 1);
-        // The distance of the prediction as it was made, not of its own normalisation: both it
-        // and the mesh take the GT's transform, which only rescales the distances.
-        const TriangleBvh surface({gt_frame.apply(mesh->vertices), mesh->faces});
-        scores.p2f = surface.distances(gt_frame.apply(pred));
+        // As the published tables (PU-GCN's CGAL program reads the mesh and the saved
+        // prediction as they are): the prediction in the mesh's own coordinates, which the
+        // benchmark meshes already scale to the unit sphere.
+        const TriangleBvh surface({mesh->vertices, mesh->faces});
+        scores.p2f = surface.distances(pred);
     }
     return scores;
 }
@@ -72,7 +73,8 @@ const char* benchmark_protocol_description() {
            "pred->GT + GT->pred; HD = max of the two directed maxima of Euclidean "
            "nearest-neighbour distances (hd_legacy: PU-GCN's script, the sum of the two "
            "directed maxima of squared distances); P2F = point-to-triangle distances of the "
-           "prediction to the mesh, both in the GT's unit-sphere frame, pooled over all points "
+           "prediction to the mesh, both in the mesh's own coordinates (as PU-GCN's CGAL "
+           "program reads them), pooled over all points "
            "of all objects with a mesh (mean and population std); CD and HD averaged over "
            "objects; all values x 1e3";
 }

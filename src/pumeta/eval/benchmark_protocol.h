@@ -25,8 +25,8 @@ struct BenchmarkScores {
     /// PU-GCN's evaluation script's "Hausdorff": the sum of the two directed maxima of squared
     /// distances (what tables copied from that script print), in the same frames.
     double hd_legacy = 0;
-    /// float64 [N]: each predicted point's distance to the mesh surface, the prediction and the
-    /// mesh both mapped by the GT's unit-sphere normalisation; undefined without a mesh.
+    /// float64 [N]: each predicted point's distance to the mesh surface, both as given (the
+    /// mesh's own coordinates, as the published tables); undefined without a mesh.
     at::Tensor p2f;
 };
 

@@ -10,6 +10,7 @@
 #include <numeric>
 #include <optional>
 #include <random>
+#include <unordered_set>
 #include <vector>
 
 #include "pumeta/core/error.h"
@@ -262,6 +263,41 @@ at::Tensor fps_on_cpu(const at::Tensor& points, int64_t m, int64_t start, Pick&&
     return indices.to(points.device());
 }
 
+/// A point's coordinates as bits, with -0 read as 0, for exact equality and hashing.
+struct PointKey {
+    uint32_t x, y, z;
+    bool operator==(const PointKey& other) const {
+        return x == other.x && y == other.y && z == other.z;
+    }
+};
+
+struct PointKeyHash {
+    size_t operator()(const PointKey& key) const {
+        uint64_t h = key.x * 0x9E3779B97F4A7C15ull;
+        h ^= (h >> 29) + key.y * 0xBF58476D1CE4E5B9ull;
+        h ^= (h >> 31) + key.z * 0x94D049BB133111EBull;
+        return static_cast<size_t>(h ^ (h >> 32));
+    }
+};
+
+uint32_t coordinate_bits(float value) {
+    if (value == 0.0f) value = 0.0f;
+    uint32_t bits;
+    std::memcpy(&bits, &value, sizeof bits);
+    return bits;
+}
+
+/// The keys of float32 [N,3] points, in order.
+std::vector<PointKey> point_keys(const at::Tensor& points) {
+    at::Tensor cpu = points.to(at::kCPU).contiguous();
+    const float* p = cpu.data_ptr<float>();
+    std::vector<PointKey> keys(static_cast<size_t>(cpu.size(0)));
+    for (size_t i = 0; i < keys.size(); ++i)
+        keys[i] = {coordinate_bits(p[3 * i]), coordinate_bits(p[3 * i + 1]),
+                   coordinate_bits(p[3 * i + 2])};
+    return keys;
+}
+
 }  // namespace
 
 at::Tensor farthest_point_sampling_pruned(const at::Tensor& points, int64_t m, int64_t start) {
@@ -318,6 +354,24 @@ at::Tensor farthest_point_sampling_batched(const at::Tensor& points, int64_t m) 
     }
     return indices;
 }
+
+at::Tensor distinct_points(const at::Tensor& points, const at::Tensor& exclude) {
+    check_points(points, "distinct_points");
+    std::unordered_set<PointKey, PointKeyHash> seen;
+    if (exclude.defined()) {
+        check_points(exclude, "distinct_points exclude");
+        for (const PointKey& key : point_keys(exclude)) seen.insert(key);
+    }
+    const std::vector<PointKey> keys = point_keys(points);
+    seen.reserve(seen.size() + keys.size());
+    std::vector<int64_t> kept;
+    kept.reserve(keys.size());
+    for (size_t i = 0; i < keys.size(); ++i)
+        if (seen.insert(keys[i]).second) kept.push_back(static_cast<int64_t>(i));
+    return at::tensor(kept, at::TensorOptions(at::kLong)).to(points.device());
+}
+
+int64_t count_distinct_points(const at::Tensor& points) { return distinct_points(points).size(0); }
 
 at::Tensor uniform_random_points(int64_t n, uint64_t seed) {
     if (n < 0) throw_input_error("uniform_random_points", "cannot draw {} points", n);

@@ -28,6 +28,15 @@ at::Tensor farthest_point_sampling_pruned(const at::Tensor& points, int64_t m, i
 /// input runs the CPU loop (elements in parallel), anything else tensor ops.
 at::Tensor farthest_point_sampling_batched(const at::Tensor& points, int64_t m);
 
+/// Indices (ascending) of the first occurrence of every distinct point of float32 [N,3]
+/// `points` that does not also occur in float32 [K,3] `exclude` (K may be 0): the rows a
+/// selection may pick without ever returning one position twice. Points are equal when their
+/// coordinates are (0 and -0 alike). O(N + K) expected time.
+at::Tensor distinct_points(const at::Tensor& points, const at::Tensor& exclude = {});
+
+/// The number of distinct positions among float32 [N,3] points.
+int64_t count_distinct_points(const at::Tensor& points);
+
 /// n points uniform in the cube [-1, 1]³, float32 [n,3], from mt19937_64(seed): the synthetic
 /// clouds of the tests and benchmarks.
 at::Tensor uniform_random_points(int64_t n, uint64_t seed);

@@ -33,21 +33,60 @@ bool fps_affordable(int64_t candidates, int64_t count, double budget) {
     return static_cast<double>(candidates) * static_cast<double>(count) <= budget;
 }
 
-/// Exactly `count` points out of candidates: FPS when `fps`, else random removal or
-/// duplication of the few points by which `candidates` misses `count`.
-at::Tensor select_exactly(const at::Tensor& candidates, int64_t count, bool fps, uint64_t seed) {
-    int64_t m = candidates.size(0);
-    if (m == count) return candidates;
-    if (m == 0) throw InternalError("upsample: no candidate points to select from");
+/// The distinct points of float32 [N,3] `points` and of the midpoints from each to its k
+/// nearest others, none equal to a point of `exclude`: the candidates of the midpoint baseline
+/// (the midpoint of a point with itself is the point).
+at::Tensor midpoint_candidates(const at::Tensor& points, int64_t k, const at::Tensor& exclude) {
+    k = std::min(k, points.size(0) - 1);
+    at::Tensor candidates = points;
+    if (k > 0) {
+        at::Tensor neighbours = knn(points, points, k + 1).indices.slice(1, 1);
+        at::Tensor mids =
+            (points.unsqueeze(1) +
+             points.index_select(0, neighbours.flatten()).view({points.size(0), k, 3})) *
+            0.5f;
+        candidates = at::cat({points, mids.reshape({-1, 3})}).contiguous();
+    }
+    return candidates.index_select(0, distinct_points(candidates, exclude));
+}
+
+/// At least `count` distinct points, none in `exclude`: those of `base` (distinct points) and,
+/// where they are too few, the midpoints between them over more neighbours each round. Fewer
+/// only when `base` is too small to make enough.
+at::Tensor with_midpoints(const at::Tensor& base, int64_t count, const at::Tensor& exclude) {
+    at::Tensor grown =
+        exclude.defined() ? base.index_select(0, distinct_points(base, exclude)) : base;
+    for (int64_t k = 1; grown.size(0) < count && k < base.size(0); k *= 2)
+        grown = midpoint_candidates(base, k, exclude);
+    return grown;
+}
+
+/// Exactly `count` points out of candidates, none twice and none equal to a point of `exclude`
+/// (the input points an output keeps): FPS when `fps`, else a random subset. Candidates with
+/// fewer such points than `count` are first joined by midpoints between them; only candidates
+/// that cannot make enough (nearly all in one place) repeat some.
+at::Tensor select_exactly(const at::Tensor& candidates, int64_t count, bool fps, uint64_t seed,
+                          const at::Tensor& exclude = {}) {
+    if (candidates.size(0) == 0)
+        throw InternalError("upsample: no candidate points to select from");
+    at::Tensor base = candidates.index_select(0, distinct_points(candidates));
+    at::Tensor pool = with_midpoints(base, count, exclude);
+    int64_t m = pool.size(0);
+    if (m == count) return pool;
     if (m > count && fps)
-        return candidates.index_select(0, farthest_point_sampling_pruned(candidates, count, 0));
-    if (m > count) return candidates.index_select(0, random_subset(m, count, seed));
-    // Short by more than m (a merge that kept under half): whole copies first, then a random
-    // subset for the rest.
+        return pool.index_select(0, farthest_point_sampling_pruned(pool, count, 0));
+    if (m > count) return pool.index_select(0, random_subset(m, count, seed));
+    if (m == 0) {  // every candidate is a kept input point
+        pool = base;
+        m = pool.size(0);
+    }
+    spdlog::warn(
+        "upsample: the candidates make {} distinct positions for {} output points; some repeat", m,
+        count);
     const int64_t copies = count / m;
-    at::Tensor repeated = candidates.repeat({copies, 1});
+    at::Tensor repeated = pool.repeat({copies, 1});
     if (count == copies * m) return repeated;
-    at::Tensor extra = candidates.index_select(0, random_subset(m, count - copies * m, seed));
+    at::Tensor extra = pool.index_select(0, random_subset(m, count - copies * m, seed));
     return at::cat({repeated, extra});
 }
 
@@ -104,9 +143,10 @@ at::Tensor bound_to_spacing(const at::Tensor& cloud, const at::Tensor& outputs, 
     return (source + offset * shrink.unsqueeze(1)).view(outputs.sizes());
 }
 
-/// Keeps the outputs of each patch that fall in the region the patch "owns": an output point
+/// Marks the outputs of each patch that fall in the region the patch "owns": an output point
 /// survives when the nearest input point to it has the patch's seed as its nearest seed.
 /// Each input point thus contributes through one patch only, giving about ratio·N points.
+/// Returns bool [P·m] over the outputs in patch order.
 at::Tensor merge_by_ownership(const at::Tensor& cloud, const Patches& patches,
                               const at::Tensor& outputs /*[P,m,3]*/) {
     at::Tensor seed_points = cloud.index_select(0, patches.seeds);
@@ -115,8 +155,7 @@ at::Tensor merge_by_ownership(const at::Tensor& cloud, const Patches& patches,
     at::Tensor flat = outputs.reshape({p * m, 3}).contiguous();
     at::Tensor nearest_input = knn(cloud, flat, 1).indices.squeeze(1);  // [P·m]
     at::Tensor patch_of_output = at::arange(p, at::kLong).repeat_interleave(m);
-    at::Tensor keep = owner.index_select(0, nearest_input) == patch_of_output;
-    return flat.index({keep});
+    return owner.index_select(0, nearest_input) == patch_of_output;
 }
 
 /// X↓ of dense [B,M,3]: the adaptation's sampler's M/r points, else the backbone's own.
@@ -194,11 +233,12 @@ struct ScanHandling {
     }
 
     /// Exactly r·N points: the input points and (r−1)·N candidates when it keeps them, else
-    /// r·N candidates. `select` picks a count.
+    /// r·N candidates. `select(count, exclude)` picks a count of points, none equal to one of
+    /// `exclude` (the kept input, else none).
     at::Tensor output(const at::Tensor& cloud, int64_t r,
-                      const std::function<at::Tensor(int64_t)>& select) const {
-        if (!keep_input) return select(r * cloud.size(0));
-        return at::cat({cloud, select((r - 1) * cloud.size(0))});
+                      const std::function<at::Tensor(int64_t, const at::Tensor&)>& select) const {
+        if (!keep_input) return select(r * cloud.size(0), at::Tensor());
+        return at::cat({cloud, select((r - 1) * cloud.size(0), cloud)});
     }
 };
 
@@ -232,8 +272,9 @@ at::Tensor upsample_whole(const Backbone& model, const ParamMap& params, const a
     }
     const ScanHandling scan(cloud, options);
     at::Tensor candidates = scan.place(cloud, at::cat(outputs)).contiguous();
-    return scan.output(cloud, model.ratio(), [&](int64_t count) {
-        return select_exactly(candidates, count, scan.fps(candidates.size(0), count), options.seed);
+    return scan.output(cloud, model.ratio(), [&](int64_t count, const at::Tensor& exclude) {
+        return select_exactly(candidates, count, scan.fps(candidates.size(0), count), options.seed,
+                              exclude);
     });
 }
 
@@ -348,14 +389,22 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
         upsampled = bound_to_spacing(cloud, upsampled, options.spacing_bound);
     const ScanHandling scan(cloud, options);
     upsampled = scan.place(cloud, upsampled);
-    return scan.output(cloud, r, [&](int64_t target) {
+    return scan.output(cloud, r, [&](int64_t target, const at::Tensor& exclude) {
         at::Tensor candidates = upsampled.reshape({-1, 3}).contiguous();
         if (scan.fps(candidates.size(0), target))
-            return select_exactly(candidates, target, /*fps=*/true, options.seed);
-        // The merge leaves about r·N points: the few extra or missing go at random (an FPS
-        // over all of them to drop a few hundred would cost as much as the network).
-        candidates = merge_by_ownership(cloud, patches, upsampled);
-        return select_exactly(candidates, target, /*fps=*/false, options.seed);
+            return select_exactly(candidates, target, /*fps=*/true, options.seed, exclude);
+        // The merge leaves about r·N points: the few extra go at random (an FPS over all of
+        // them to drop a few hundred would cost as much as the network), the few missing are
+        // drawn from the outputs it dropped.
+        at::Tensor owned = merge_by_ownership(cloud, patches, upsampled);
+        at::Tensor kept = candidates.index({owned});
+        kept = kept.index_select(0, distinct_points(kept, exclude));
+        if (kept.size(0) >= target) return select_exactly(kept, target, false, options.seed);
+        at::Tensor taken = exclude.defined() ? at::cat({exclude, kept}) : kept;
+        at::Tensor dropped = candidates.index({owned.logical_not()});
+        at::Tensor fill = select_exactly(dropped.size(0) ? dropped : kept, target - kept.size(0),
+                                         false, options.seed, taken);
+        return at::cat({kept, fill});
     });
 }
 
@@ -501,28 +550,25 @@ UpsampleResult upsample_cloud(const Backbone& model, const at::Tensor& points,
 at::Tensor midpoint_upsample(const at::Tensor& points, int64_t ratio, int64_t k,
                              double fps_budget) {
     check_points(points, "midpoint input", 2);
-    if (k <= 0) k = ratio;
-    k = std::min(k, points.size(0) - 1);
-    // Neighbour 0 is the point itself.
-    const KnnResult nearest = knn(points, points, k + 1);
-    at::Tensor neighbours = nearest.indices.slice(1, 1);
-    at::Tensor mids = (points.unsqueeze(1) +
-                       points.index_select(0, neighbours.flatten()).view({points.size(0), k, 3})) *
-                      0.5f;
-    at::Tensor candidates = at::cat({points, mids.reshape({-1, 3})}).contiguous();
+    if (ratio < 1) throw_input_error("--ratio", "ratio {} is below 1", ratio);
+    if (k <= 0 && ratio > 4 && ratio % 4 == 0)  // 16x as 4x twice, as the published baseline
+        return midpoint_upsample(midpoint_upsample(points, 4, 0, fps_budget), ratio / 4, 0,
+                                 fps_budget);
+    // The 2r nearest neighbours, the point itself included.
+    if (k <= 0) k = 2 * ratio - 1;
     const int64_t target = ratio * points.size(0);
-    if (candidates.size(0) <= target) return select_exactly(candidates, target, false, 0);
-    if (fps_affordable(candidates.size(0), target, fps_budget))
-        return candidates.index_select(0, farthest_point_sampling_pruned(candidates, target, 0));
+    const at::Tensor base = points.index_select(0, distinct_points(points));
+    at::Tensor candidates = midpoint_candidates(base, k, {});
+    if (candidates.size(0) < target) candidates = with_midpoints(base, target, {});
+    if (candidates.size(0) <= target || fps_affordable(candidates.size(0), target, fps_budget))
+        return select_exactly(candidates, target, /*fps=*/true, 0);
     // The area the input covers, each point owning the hexagon of its nearest-neighbour
     // spacing d (area sqrt(3)/2 d^2), and the Poisson-disk radius of `target` points on it.
-    const double spacing = nearest.sq_distances.select(1, 1).sqrt().mean().item<double>();
-    const double area =
-        static_cast<double>(points.size(0)) * std::sqrt(3.0) / 2 * spacing * spacing;
+    const double spacing =
+        knn(base, base, 2).sq_distances.select(1, 1).sqrt().mean().item<double>();
+    const double area = static_cast<double>(base.size(0)) * std::sqrt(3.0) / 2 * spacing * spacing;
     const double r_max =
         2.0 * std::sqrt(area / static_cast<double>(target) / (2.0 * std::sqrt(3.0)));
-    if (!(r_max > 0))  // every point duplicated: nothing to space out
-        return select_exactly(candidates, target, false, 0);
     return candidates.index_select(0, eliminate_samples(candidates, target, r_max));
 }
 

@@ -181,11 +181,14 @@ using PairSource = std::function<AdaptationPairs(const at::Tensor& cloud, const 
 UpsampleResult upsample_cloud(const Backbone& model, const at::Tensor& points,
                               const UpsampleOptions& options, const PairSource& pairs = nullptr);
 
-/// The non-learned baseline: each point plus the midpoints to its k nearest neighbours (k =
-/// ratio by default), then exactly ratio·N of them: farthest point sampling while its cost
-/// (candidates × output points) is within `fps_budget` (the network's, so every test set
-/// keeps FPS), else weighted sample elimination with the Poisson-disk radius of ratio·N points
-/// on the area the input covers, which is O(M log M).
+/// The non-learned baseline, as the published one: the midpoints from each point to its 2r
+/// nearest neighbours, the point itself included (k nearest others when k > 0), then exactly
+/// ratio·N distinct ones: farthest point sampling while its cost (candidates × output points)
+/// is within `fps_budget` (the network's, so every test set keeps FPS), else weighted sample
+/// elimination with the Poisson-disk radius of ratio·N points on the area the input covers,
+/// which is O(M log M). A multiple of 4 above 4 is 4x, then the rest (k = 0). No position
+/// repeats unless the
+/// input repeats it (fewer than ratio·N distinct midpoints are joined by more).
 at::Tensor midpoint_upsample(const at::Tensor& points, int64_t ratio, int64_t k = 0,
                              double fps_budget = UpsampleOptions().fps_budget);
 
