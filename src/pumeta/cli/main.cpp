@@ -13,6 +13,7 @@
 #include "pumeta/core/device.h"
 #include "pumeta/core/error.h"
 #include "pumeta/core/interrupt.h"
+#include "pumeta/core/version.h"
 
 int main(int argc, char** argv) {
     pumeta::keep_freed_memory();
@@ -20,6 +21,14 @@ int main(int argc, char** argv) {
         "pumeta: upsample sparse point clouds with neural networks adapted to each "
         "input by meta-learning"};
     app.require_subcommand(1);
+    app.set_version_flag(
+        "--version",
+        [] {
+            std::string text = pumeta::build_info_text();
+            text.pop_back();  // CLI11 adds the last newline
+            return text;
+        },
+        "print the version, the commit, LibTorch's version and the BLAS in use, and exit");
     int threads = 0;
     std::string log_level = "info";
     app.add_option("--threads", threads, "CPU threads (default: all cores)")
@@ -58,6 +67,8 @@ int main(int argc, char** argv) {
     } catch (const CLI::CallForHelp& e) {
         return app.exit(e);
     } catch (const CLI::CallForAllHelp& e) {
+        return app.exit(e);
+    } catch (const CLI::CallForVersion& e) {
         return app.exit(e);
     } catch (const CLI::ParseError& e) {
         // One line, like every other error (CLI11 would add a "Run with --help" line).

@@ -273,7 +273,7 @@ class MetaStage final : public RunStage {
 
 MetaTrainResult meta_train(const MetaTrainConfig& config, bool resume, double stop_after_seconds,
                            const std::vector<std::string>& allow_changes) {
-    check_blas_speed();
+    check_blas();
     ProcessGroup group(config.distributed);
     // Rank 0 alone writes the run directory; the others only read it when resuming.
     TrainingState opened =

@@ -318,7 +318,7 @@ class SupervisedStage final : public RunStage {
 
 TrainResult train(const TrainConfig& config, bool resume, double stop_after_seconds,
                   const std::vector<std::string>& allow_changes) {
-    check_blas_speed();
+    check_blas();
     ProcessGroup group(config.distributed);
     // Rank 0 alone writes the run directory; the others only read it when resuming.
     const bool writes = group.is_main();
