@@ -3,6 +3,7 @@
 // and tiny checkpoints of every backbone.
 //   fuzz_make_seeds OUT_DIR   -> OUT_DIR/<target>/<seed files>
 #include <ATen/ATen.h>
+#include <caffe2/serialize/inline_container.h>
 
 #include <cstdio>
 #include <cstring>
@@ -202,6 +203,65 @@ void write_checkpoints(const fs::path& dir) {
 
 }  // namespace
 
+// A torch.save archive of a state dict as PyTorch writes it: one float tensor and one
+// transposed view of the same storage at an offset, an int64 scalar, and the _metadata BUILD.
+void write_torch_archive(const fs::path& dir) {
+    fs::create_directories(dir);
+    auto text = [](std::string& out, const std::string& value) {
+        out += 'X';
+        put<uint32_t>(out, static_cast<uint32_t>(value.size()));
+        out += value;
+    };
+    std::string pickle =
+        "\x80\x02"
+        "ccollections\nOrderedDict\nq\x00)Rq\x01(";
+    struct Entry {
+        const char *name, *key, *type;
+        int numel, offset, rows, cols, row_stride, col_stride;
+    };
+    for (const Entry& e : {Entry{"conv.weight", "0", "FloatStorage", 6, 0, 2, 3, 3, 1},
+                           Entry{"conv.view", "0", "FloatStorage", 6, 1, 2, 2, 1, 3},
+                           Entry{"bn.num_batches_tracked", "1", "LongStorage", 1, 0, 0, 0, 0, 0}}) {
+        text(pickle, e.name);
+        pickle += "ctorch._utils\n_rebuild_tensor_v2\n((";
+        text(pickle, "storage");
+        pickle += std::string("ctorch\n") + e.type + "\n";
+        text(pickle, e.key);
+        text(pickle, "cuda:0");
+        pickle += 'K';
+        pickle += static_cast<char>(e.numel);
+        pickle += "tQK";
+        pickle += static_cast<char>(e.offset);
+        if (e.rows == 0) {
+            pickle += "))";
+        } else {
+            for (const auto [first, second] :
+                 {std::pair{e.rows, e.cols}, std::pair{e.row_stride, e.col_stride}}) {
+                pickle += 'K';
+                pickle += static_cast<char>(first);
+                pickle += 'K';
+                pickle += static_cast<char>(second);
+                pickle += '\x86';  // TUPLE2
+            }
+        }
+        pickle += "\x89ccollections\nOrderedDict\n)RtR";
+    }
+    pickle += "u}b.";
+    std::string floats, longs;
+    for (float v : {1.f, -2.f, 0.5f, 4.f, 8.f, -0.25f}) put(floats, v);
+    put<int64_t>(longs, 7);
+    std::string out;
+    caffe2::serialize::PyTorchStreamWriter writer([&](const void* data, size_t size) {
+        out.append(static_cast<const char*>(data), size);
+        return size;
+    });
+    writer.writeRecord("data.pkl", pickle.data(), pickle.size());
+    writer.writeRecord("data/0", floats.data(), floats.size());
+    writer.writeRecord("data/1", longs.data(), longs.size());
+    writer.writeEndOfFile();
+    write_bytes(dir / "state-dict.pth", out);
+}
+
 int main(int argc, char** argv) {
     if (argc != 2) {
         std::fprintf(stderr, "usage: fuzz_make_seeds OUT_DIR\n");
@@ -216,5 +276,6 @@ int main(int argc, char** argv) {
     write_stl(out / "read_stl");
     write_las(out / "read_las");
     write_checkpoints(out / "load_checkpoint");
+    write_torch_archive(out / "read_torch_archive");
     return 0;
 }
