@@ -212,9 +212,11 @@ void write_torch_archive(const fs::path& dir) {
         put<uint32_t>(out, static_cast<uint32_t>(value.size()));
         out += value;
     };
-    std::string pickle =
+    // Built from a literal with its length: it holds NUL bytes.
+    static constexpr char kHead[] =
         "\x80\x02"
         "ccollections\nOrderedDict\nq\x00)Rq\x01(";
+    std::string pickle(kHead, sizeof(kHead) - 1);
     struct Entry {
         const char *name, *key, *type;
         int numel, offset, rows, cols, row_stride, col_stride;
@@ -244,7 +246,9 @@ void write_torch_archive(const fs::path& dir) {
                 pickle += '\x86';  // TUPLE2
             }
         }
-        pickle += "\x89ccollections\nOrderedDict\n)RtR";
+        pickle +=
+            "\x89"
+            "ccollections\nOrderedDict\n)RtR";
     }
     pickle += "u}b.";
     std::string floats, longs;

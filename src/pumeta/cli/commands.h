@@ -30,6 +30,8 @@ void add_contact_sheet_command(CLI::App& app);
 void add_diagnose_command(CLI::App& app);
 /// Paired intervals between two eval runs (eval/compare_runs.h).
 void add_compare_command(CLI::App& app);
+/// Released weights of other implementations as pumeta models (models/import.h).
+void add_import_command(CLI::App& app);
 
 /// The largest --ratio any command accepts.
 inline constexpr int64_t kMaxRatio = 256;

@@ -68,7 +68,7 @@ nlohmann::json model_info(const std::string& path) {
     if (model.meta_trained) info["meta"] = MetaOptions::from_json(model.extra["meta"]).to_json();
     if (!model.adaptation.step_sizes.empty())
         info["step_sizes"] = step_sizes_to_json(model.adaptation.step_sizes);
-    for (const char* key : {"step", "val_cd", "sampler"})
+    for (const char* key : {"step", "val_cd", "sampler", "imported_from"})
         if (model.extra.is_object() && model.extra.contains(key)) info[key] = model.extra[key];
     return info;
 }

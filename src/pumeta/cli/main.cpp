@@ -56,6 +56,7 @@ int main(int argc, char** argv) {
     pumeta::cli::add_contact_sheet_command(app);
     pumeta::cli::add_diagnose_command(app);
     pumeta::cli::add_compare_command(app);
+    pumeta::cli::add_import_command(app);
     std::string command_line = "pumeta";
     for (int i = 1; i < argc; ++i) command_line += std::string(" ") + argv[i];
     pumeta::cli::add_eval_command(app, command_line);

@@ -278,6 +278,25 @@ at::Tensor upsample_whole(const Backbone& model, const ParamMap& params, const a
     });
 }
 
+/// The backbone's own whole-cloud pipeline (Backbone::cloud_candidates) with `params`, then
+/// the same selection of exactly r·N points as the patches' (FPS over distinct candidates,
+/// scans keeping their input points).
+at::Tensor upsample_own(const Backbone& model, const ParamMap& params, const at::Tensor& cloud,
+                        const UpsampleOptions& options, UpsampleResult& result) {
+    at::Tensor candidates;
+    {
+        ThreadCountGuard one_thread(1);
+        candidates = model.cloud_candidates(cloud, params);
+    }
+    result.patches += 1;
+    const ScanHandling scan(cloud, options);
+    candidates = scan.place(cloud, candidates).contiguous();
+    return scan.output(cloud, model.ratio(), [&](int64_t count, const at::Tensor& exclude) {
+        return select_exactly(candidates, count, scan.fps(candidates.size(0), count), options.seed,
+                              exclude);
+    });
+}
+
 at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
                          const UpsampleOptions& options, const Normalization& frame,
                          const PairSource& pair_source, UpsampleResult& result) {
@@ -327,6 +346,12 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
         throw_input_error("--tta-unit",
                           "patch adapts each patch, but whole-cloud inference "
                           "(--whole-cloud) runs none; use object or cloud");
+    const bool own_pipeline = model.has_cloud_pipeline() && whole_cloud <= 0;
+    if (own_pipeline && adaptation.enabled() && per_patch)
+        throw_input_error("--tta-unit",
+                          "patch adapts each patch, but {} upsamples the whole cloud by its "
+                          "own pipeline; use object or cloud",
+                          model.name());
     if (adaptation.enabled() && !per_patch) {
         std::pair<ParamMap, std::vector<double>> adapted;
         if (adaptation.unit == AdaptationUnit::kObject && !pair_source) {
@@ -344,6 +369,7 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
         result.loss_after = adapted.second.back();
     }
     result.tta_seconds += seconds_since(tta_start);
+    if (own_pipeline) return upsample_own(model, object_params, cloud, options, result);
     if (whole_cloud > 0)
         return upsample_whole(model, object_params, cloud, patches, whole_cloud, options, result);
     result.patches += num_patches;

@@ -55,6 +55,17 @@ class Backbone {
     /// caller says otherwise (UpsampleOptions::whole_cloud_points). Default 0: patches.
     virtual int64_t inference_whole_cloud_points() const { return 0; }
 
+    /// Whether the backbone upsamples whole clouds by a pipeline of its own (cloud_candidates)
+    /// instead of through patches of its input. Default false.
+    virtual bool has_cloud_pipeline() const { return false; }
+    /// That pipeline (Grad-PU's test: patches of the interpolated cloud, refined): candidates
+    /// [M,3], M >= ratio·N, in the frame of `cloud` [N,3] (the input's unit sphere), from which
+    /// the inference pipeline selects exactly ratio·N; with `params`. Only called when
+    /// has_cloud_pipeline(). Default: undefined.
+    virtual at::Tensor cloud_candidates(const at::Tensor& cloud, const ParamMap& params) const {
+        return at::Tensor();
+    }
+
     /// The backbone's own parameters (leaf tensors with requires_grad = true).
     ParamMap& parameters() { return params_; }
     const ParamMap& parameters() const { return params_; }

@@ -7,6 +7,7 @@
 #include "pumeta/core/error.h"
 #include "pumeta/models/backbone.h"
 #include "pumeta/models/dispu.h"
+#include "pumeta/models/gradpu.h"
 #include "pumeta/models/metapu.h"
 #include "pumeta/models/mpu.h"
 #include "pumeta/models/pudense.h"
@@ -39,6 +40,7 @@ void register_builtin_backbones() {
     register_backbone("metapu", make_metapu, metapu_small_config());
     register_backbone("pugan", make_pugan, pugan_small_config());
     register_backbone("mpu", make_mpu, mpu_small_config());
+    register_backbone("gradpu", make_gradpu, gradpu_small_config());
 }
 
 void ensure_builtins_registered() {
