@@ -53,40 +53,10 @@ void make_test_folder(const fs::path& root, bool nested = false) {
     write_point_cloud((gt / "sphere.xyz").string(), {test::sphere_points(1024, 4), {}, {}});
 }
 
-/// cases.csv as rows of fields, the header first.
-std::vector<std::vector<std::string>> read_csv(const std::string& path) {
-    std::vector<std::vector<std::string>> rows;
-    std::ifstream in(path);
-    for (std::string line; std::getline(in, line);) {
-        rows.emplace_back();
-        std::stringstream fields(line);
-        for (std::string field; std::getline(fields, field, ',');) rows.back().push_back(field);
-        if (!line.empty() && line.back() == ',') rows.back().push_back("");
-    }
-    return rows;
-}
-
 at::Tensor own_unit_sphere(const at::Tensor& points) {
     at::Tensor p = points.to(at::kDouble);
     p = p - p.mean(0);
     return p / p.norm(2, 1).max();
-}
-
-/// The last line of stderr is the error, on one line, and names `fragments`.
-::testing::AssertionResult one_line_error(const test::CommandResult& r,
-                                          const std::vector<std::string>& fragments) {
-    if (r.exit_code != 2)
-        return ::testing::AssertionFailure() << "exit " << r.exit_code << ": " << r.err;
-    std::string err = r.err;
-    while (!err.empty() && err.back() == '\n') err.pop_back();
-    const std::string last =
-        err.substr(err.rfind('\n') == std::string::npos ? 0 : err.rfind('\n') + 1);
-    if (last.rfind("pumeta: error: ", 0) != 0)
-        return ::testing::AssertionFailure() << "no error line: " << r.err;
-    for (const std::string& fragment : fragments)
-        if (last.find(fragment) == std::string::npos)
-            return ::testing::AssertionFailure() << "'" << last << "' lacks '" << fragment << "'";
-    return ::testing::AssertionSuccess();
 }
 
 TEST(CliBenchmark, EvalScoresEachObjectWithThePublishedProtocol) {
@@ -95,7 +65,7 @@ TEST(CliBenchmark, EvalScoresEachObjectWithThePublishedProtocol) {
     auto r = test::run_cli({"--threads", "1", "eval", "--benchmark", "pugan", "--data",
                             dir.file("test"), "--method", "input", "-o", dir.file("out")});
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    const auto rows = read_csv(dir.file("out/cases.csv"));
+    const auto rows = test::read_csv(dir.file("out/cases.csv"));
     ASSERT_EQ(rows.size(), 3u);
     EXPECT_EQ(rows[0][0], "object");
     EXPECT_EQ(rows[1][0], "cube");
@@ -187,7 +157,7 @@ TEST(CliBenchmark, PublicPuganMeshesScoreAsAnIndependentComputation) {
         args.insert(args.end(), method.begin(), method.end());
         const auto r = test::run_cli(args);
         ASSERT_EQ(r.exit_code, 0) << r.err;
-        const auto rows = read_csv(out + "/cases.csv");
+        const auto rows = test::read_csv(out + "/cases.csv");
         ASSERT_EQ(rows.size(), 4u) << method[1];
         double p2f_sum = 0;
         for (size_t i = 1; i < rows.size(); ++i) {
@@ -233,11 +203,12 @@ TEST(CliBenchmark, EvalRunsTheMidpointBaselineAndANetworkOnPu1kNesting) {
     fs::create_directories(dir.path() / "pu1k" / "gt_2048");
     auto r = test::run_cli({"eval", "--benchmark", "pu1k", "--data", dir.file("pu1k"), "--method",
                             "midpoint", "-o", dir.file("out")});
-    EXPECT_TRUE(one_line_error(r, {"several ground truths", "gt_1024", "gt_2048", "--ratio"}));
+    EXPECT_TRUE(
+        test::one_line_error(r, {"several ground truths", "gt_1024", "gt_2048", "--ratio"}));
     r = test::run_cli({"eval", "--benchmark", "pu1k", "--data", dir.file("pu1k"), "--ratio", "4",
                        "--method", "midpoint", "--save-predictions", "-o", dir.file("mid")});
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    auto rows = read_csv(dir.file("mid/cases.csv"));
+    auto rows = test::read_csv(dir.file("mid/cases.csv"));
     ASSERT_EQ(rows.size(), 3u);
     for (size_t i = 1; i < rows.size(); ++i) EXPECT_EQ(rows[i][2], "1024") << rows[i][0];
     EXPECT_EQ(read_point_cloud(dir.file("mid/pred/cube.xyz")).size(), 1024);
@@ -246,7 +217,7 @@ TEST(CliBenchmark, EvalRunsTheMidpointBaselineAndANetworkOnPu1kNesting) {
     r = test::run_cli({"--threads", "1", "eval", "--benchmark", "pu1k", "--data", dir.file("pu1k"),
                        "--ratio", "4", "--model", dir.file("tiny.pt"), "-o", dir.file("net")});
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    rows = read_csv(dir.file("net/cases.csv"));
+    rows = test::read_csv(dir.file("net/cases.csv"));
     ASSERT_EQ(rows.size(), 3u);
     for (size_t i = 1; i < rows.size(); ++i) {
         EXPECT_EQ(rows[i][2], "1024") << rows[i][0];
@@ -263,23 +234,25 @@ TEST(CliBenchmark, BadBenchmarkFoldersAndOptionsAreOneLineErrors) {
         args.insert(args.end(), extra.begin(), extra.end());
         return test::run_cli(args);
     };
-    EXPECT_TRUE(one_line_error(eval({"--benchmark", "pugan"}), {"--data"}));
-    EXPECT_TRUE(one_line_error(eval({"--benchmark", "pugan", "--data", dir.file("none")}),
-                               {dir.file("none"), "not found"}));
-    EXPECT_TRUE(one_line_error(eval({"--benchmark", "pugan", "--data", dir.path().string()}),
-                               {"no input_<N> folder"}));
-    EXPECT_TRUE(one_line_error(eval({"--benchmark", "pugan", "--data", data, "--ratio", "8"}),
-                               {"no gt_2048 folder for ratio 8", "gt_1024"}));
-    EXPECT_TRUE(one_line_error(eval({"--benchmark", "pugan", "--data", data, "--cases", data}),
-                               {"either --cases or --benchmark"}));
-    EXPECT_TRUE(one_line_error(test::run_cli({"eval", "--benchmark", "pugan", "--data", data,
-                                              "--method", "floor", "-o", dir.file("out")}),
-                               {"method 'floor'"}));
+    EXPECT_TRUE(test::one_line_error(eval({"--benchmark", "pugan"}), {"--data"}));
+    EXPECT_TRUE(test::one_line_error(eval({"--benchmark", "pugan", "--data", dir.file("none")}),
+                                     {dir.file("none"), "not found"}));
+    EXPECT_TRUE(test::one_line_error(eval({"--benchmark", "pugan", "--data", dir.path().string()}),
+                                     {"no input_<N> folder"}));
+    EXPECT_TRUE(test::one_line_error(eval({"--benchmark", "pugan", "--data", data, "--ratio", "8"}),
+                                     {"no gt_2048 folder for ratio 8", "gt_1024"}));
+    EXPECT_TRUE(
+        test::one_line_error(eval({"--benchmark", "pugan", "--data", data, "--cases", data}),
+                             {"either --cases or --benchmark"}));
+    EXPECT_TRUE(test::one_line_error(test::run_cli({"eval", "--benchmark", "pugan", "--data", data,
+                                                    "--method", "floor", "-o", dir.file("out")}),
+                                     {"method 'floor'"}));
     fs::remove(dir.path() / "test" / "gt_1024" / "sphere.xyz");
-    EXPECT_TRUE(one_line_error(eval({"--benchmark", "pugan", "--data", data}),
-                               {"gt_1024", "no ground truth sphere.xyz"}));
+    EXPECT_TRUE(test::one_line_error(eval({"--benchmark", "pugan", "--data", data}),
+                                     {"gt_1024", "no ground truth sphere.xyz"}));
     test::write_file(dir.file("test/gt_1024/sphere.xyz"), "1 2 nan\n");
-    EXPECT_TRUE(one_line_error(eval({"--benchmark", "pugan", "--data", data}), {"sphere.xyz"}));
+    EXPECT_TRUE(
+        test::one_line_error(eval({"--benchmark", "pugan", "--data", data}), {"sphere.xyz"}));
 }
 
 /// An HDF5 patch file of 8 patches on a curved sheet: "poisson_64" (GT, with normals) and
@@ -347,19 +320,20 @@ TEST(CliBenchmark, BadHdf5TrainingFilesAreOneLineErrors) {
     };
     // The default input key is not in the file: the message lists what is.
     auto r = test::run_cli({"train", "--config", dir.file("train.json")});
-    EXPECT_TRUE(one_line_error(r, {h5, "no dataset 'poisson_256'", "poisson_16, poisson_64"}));
+    EXPECT_TRUE(
+        test::one_line_error(r, {h5, "no dataset 'poisson_256'", "poisson_16, poisson_64"}));
     const std::string flat = dir.file("flat.h5");
     test::write_hdf5(flat, {{"poisson_16", test::sheet(8, 16, 1)[0], {}},
                             {"poisson_64", test::sheet(8, 64, 1), {}}});
-    EXPECT_TRUE(one_line_error(train(flat, "poisson_16"), {flat, "has shape [16, 3]"}));
+    EXPECT_TRUE(test::one_line_error(train(flat, "poisson_16"), {flat, "has shape [16, 3]"}));
     const std::string bytes = test::read_file(h5);
     const std::string cut = dir.file("cut.h5");
     test::write_file(cut, bytes.substr(0, bytes.size() / 2));
-    EXPECT_TRUE(one_line_error(train(cut, "poisson_16"), {cut}));
+    EXPECT_TRUE(test::one_line_error(train(cut, "poisson_16"), {cut}));
     // A GT of 4× the input for a model of ratio 8.
     config.backbone = test::tiny_pugcn_config(8, 11);
     test::write_file(dir.file("train.json"), config.to_json().dump());
-    EXPECT_TRUE(one_line_error(train(h5, "poisson_16"), {h5, "ratio 8"}));
+    EXPECT_TRUE(test::one_line_error(train(h5, "poisson_16"), {h5, "ratio 8"}));
 }
 
 }  // namespace

@@ -5,8 +5,6 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 
 #include "pumeta/geometry/io.h"
 #include "pumeta/geometry/sampling.h"
@@ -23,23 +21,6 @@ fs::path gradpu_weights() {
     return shared_dir() / "weights" / "gradpu" / "pugan-ckpt-epoch-60.pth";
 }
 
-/// Exit 2, and the last line of stderr is the error, naming every one of `fragments`.
-::testing::AssertionResult one_line_error(const test::CommandResult& r,
-                                          const std::vector<std::string>& fragments) {
-    if (r.exit_code != 2)
-        return ::testing::AssertionFailure() << "exit " << r.exit_code << ": " << r.err;
-    std::string err = r.err;
-    while (!err.empty() && err.back() == '\n') err.pop_back();
-    const size_t newline = err.rfind('\n');
-    const std::string last = newline == std::string::npos ? err : err.substr(newline + 1);
-    if (last.rfind("pumeta: error: ", 0) != 0)
-        return ::testing::AssertionFailure() << "no error line: " << r.err;
-    for (const std::string& fragment : fragments)
-        if (last.find(fragment) == std::string::npos)
-            return ::testing::AssertionFailure() << "'" << last << "' lacks '" << fragment << "'";
-    return ::testing::AssertionSuccess();
-}
-
 test::CommandResult import(const std::string& file, const std::string& out,
                            const std::string& format = "gradpu") {
     return test::run_cli({"import", "--from", format, file, "-o", out});
@@ -50,11 +31,11 @@ TEST(CliImport, AFileThatIsNoTorchArchiveIsAOneLineErrorAndWritesNothing) {
     const std::string out = dir.file("out.pt");
     // A pumeta model file is a LibTorch archive, not a torch.save state dict.
     const std::string foreign = test::source_dir() + "/models/pugcn-x4.pt";
-    EXPECT_TRUE(one_line_error(import(foreign, out), {"pugcn-x4.pt"}));
+    EXPECT_TRUE(test::one_line_error(import(foreign, out), {"pugcn-x4.pt"}));
     const std::string text = dir.file("weights.pth");
     test::write_file(text, "not an archive\n");
-    EXPECT_TRUE(one_line_error(import(text, out), {"weights.pth"}));
-    EXPECT_TRUE(one_line_error(import(dir.file("missing.pth"), out), {"missing.pth"}));
+    EXPECT_TRUE(test::one_line_error(import(text, out), {"weights.pth"}));
+    EXPECT_TRUE(test::one_line_error(import(dir.file("missing.pth"), out), {"missing.pth"}));
     EXPECT_FALSE(fs::exists(out));
     // An unknown format is refused before any file is read.
     const auto r = import(foreign, out, "pugan");
@@ -70,15 +51,16 @@ TEST(CliImport, TruncatedAndMismatchedReleasedFilesAreOneLineErrors) {
     for (size_t keep : {size_t{100}, whole.size() / 2, whole.size() - 30}) {
         const std::string cut = dir.file("cut-" + std::to_string(keep) + ".pth");
         test::write_file(cut, whole.substr(0, keep));
-        EXPECT_TRUE(one_line_error(import(cut, out), {"cut-" + std::to_string(keep) + ".pth"}))
+        EXPECT_TRUE(
+            test::one_line_error(import(cut, out), {"cut-" + std::to_string(keep) + ".pth"}))
             << keep << " of " << whole.size() << " bytes";
     }
     // Another network's weights: a Grad-PU tensor it lacks is named.
     const fs::path pugaussian =
         shared_dir() / "weights" / "pugaussian" / "pu_gaussian_pugan_Best.pth";
     if (fs::exists(pugaussian))
-        EXPECT_TRUE(one_line_error(import(pugaussian.string(), out),
-                                   {"pu_gaussian_pugan_Best.pth", "tensor"}));
+        EXPECT_TRUE(test::one_line_error(import(pugaussian.string(), out),
+                                         {"pu_gaussian_pugan_Best.pth", "tensor"}));
     EXPECT_FALSE(fs::exists(out));
 }
 
@@ -109,18 +91,6 @@ TEST(CliImport, ImportedGradPuWeightsServeInfoAndUpsample) {
     EXPECT_LT((radius - 1).abs().max().item<double>(), 0.05);
 }
 
-/// Rows of a CSV file, split on commas, the header first.
-std::vector<std::vector<std::string>> read_csv(const std::string& path) {
-    std::vector<std::vector<std::string>> rows;
-    std::ifstream in(path);
-    for (std::string line; std::getline(in, line);) {
-        rows.emplace_back();
-        std::stringstream fields(line);
-        for (std::string field; std::getline(fields, field, ',');) rows.back().push_back(field);
-    }
-    return rows;
-}
-
 // Agreement with the original (Grad-PU's own code and these weights, step size 50, CPU,
 // PyTorch 1.13, measured on the public meshes): 4x CD per mesh within 2 %.
 TEST(CliImport, ImportedGradPuScoresThreePublicMeshesAsTheOriginal) {
@@ -144,7 +114,7 @@ TEST(CliImport, ImportedGradPuScoresThreePublicMeshesAsTheOriginal) {
     const auto r = test::run_cli({"--threads", "1", "eval", "--benchmark", "pugan", "--data",
                                   data.string(), "--model", model, "--ratio", "4", "-o", out});
     ASSERT_EQ(r.exit_code, 0) << r.err;
-    const auto rows = read_csv(out + "/cases.csv");
+    const auto rows = test::read_csv(out + "/cases.csv");
     ASSERT_EQ(rows.size(), 4u);
     ASSERT_EQ(rows[0][4], "cd_1e3");
     for (size_t i = 1; i < rows.size(); ++i) {

@@ -46,6 +46,34 @@ CommandResult run_cli(const std::vector<std::string>& args) {
     return run_command(PUMETA_CLI_PATH, args);
 }
 
+::testing::AssertionResult one_line_error(const CommandResult& r,
+                                          const std::vector<std::string>& fragments) {
+    if (r.exit_code != 2)
+        return ::testing::AssertionFailure() << "exit " << r.exit_code << ": " << r.err;
+    std::string err = r.err;
+    while (!err.empty() && err.back() == '\n') err.pop_back();
+    const size_t newline = err.rfind('\n');
+    const std::string last = newline == std::string::npos ? err : err.substr(newline + 1);
+    if (last.rfind("pumeta: error: ", 0) != 0)
+        return ::testing::AssertionFailure() << "no error line: " << r.err;
+    for (const std::string& fragment : fragments)
+        if (last.find(fragment) == std::string::npos)
+            return ::testing::AssertionFailure() << "'" << last << "' lacks '" << fragment << "'";
+    return ::testing::AssertionSuccess();
+}
+
+std::vector<std::vector<std::string>> read_csv(const std::string& path) {
+    std::vector<std::vector<std::string>> rows;
+    std::ifstream in(path);
+    for (std::string line; std::getline(in, line);) {
+        rows.emplace_back();
+        std::stringstream fields(line);
+        for (std::string field; std::getline(fields, field, ',');) rows.back().push_back(field);
+        if (!line.empty() && line.back() == ',') rows.back().push_back("");
+    }
+    return rows;
+}
+
 std::string built_program(const std::string& name) {
     fs::path program = fs::path(PUMETA_CLI_PATH).parent_path() / name;
     return access(program.c_str(), X_OK) == 0 ? program.string() : "";

@@ -68,6 +68,15 @@ std::string cli_path();
 /// Runs the built `pumeta` binary with `args`.
 CommandResult run_cli(const std::vector<std::string>& args);
 
+/// Success when a command exited with 2 and the last line of its stderr is
+/// "pumeta: error: ..." containing every fragment.
+::testing::AssertionResult one_line_error(const CommandResult& r,
+                                          const std::vector<std::string>& fragments);
+
+/// A CSV file as rows of comma-separated fields, the header first (a trailing comma ends in an
+/// empty field).
+std::vector<std::vector<std::string>> read_csv(const std::string& path);
+
 /// A program built beside the `pumeta` binary (e.g. "pumeta-ear"), or "" when it is not built.
 std::string built_program(const std::string& name);
 

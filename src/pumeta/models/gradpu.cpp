@@ -268,7 +268,6 @@ at::Tensor GradPu::upsample(const at::Tensor& x, const ParamMap& params) const {
     if (x.size(1) < 2)
         throw_input_error("gradpu input", "needs at least 2 points per patch, found {}", x.size(1));
     const int64_t m = options_.ratio * x.size(1);
-    at::Tensor interpolated = midpoint_interpolate(x, options_.ratio);
     if (m > options_.refine_patch_size) {
         // A patch larger than a refinement patch is a cloud: the whole pipeline per patch.
         std::vector<at::Tensor> outputs;
@@ -278,6 +277,7 @@ at::Tensor GradPu::upsample(const at::Tensor& x, const ParamMap& params) const {
         }
         return at::stack(outputs, 0);
     }
+    const at::Tensor interpolated = midpoint_interpolate(x, options_.ratio);
     const PatchFrame frame(interpolated);
     const double point_step =
         options_.step_rule == "cloud_mean" ? options_.step_size / double(m) : options_.step_size;
@@ -296,12 +296,9 @@ at::Tensor GradPu::cloud_candidates(const at::Tensor& cloud, const ParamMap& par
     const int64_t count =
         std::max<int64_t>(1, static_cast<int64_t>(double(m) / double(options_.refine_patch_size) *
                                                   double(options_.patch_rate)));
-    const at::Tensor seeds = interpolated.index_select(
-        0, farthest_point_sampling(interpolated.to(at::kFloat).contiguous(), count));
-    const at::Tensor members =
-        knn(interpolated.to(at::kFloat).contiguous(), seeds.to(at::kFloat).contiguous(),
-            patch_points)
-            .indices;  // [P, patch_points]
+    const at::Tensor search = interpolated.to(at::kFloat).contiguous();
+    const at::Tensor seeds = search.index_select(0, farthest_point_sampling(search, count));
+    const at::Tensor members = knn(search, seeds, patch_points).indices;  // [P, patch_points]
     at::Tensor patches = interpolated.index_select(0, members.flatten()).view({count, -1, 3});
     const double point_step = options_.step_rule == "cloud_mean"
                                   ? options_.step_size / double(count * patch_points)
