@@ -5,6 +5,10 @@
 #include <gtest/gtest.h>
 
 #include <filesystem>
+#include <map>
+#include <string>
+#include <utility>
+#include <vector>
 
 #include "pumeta/geometry/io.h"
 #include "pumeta/geometry/sampling.h"
@@ -19,6 +23,28 @@ fs::path shared_dir() { return fs::path(test::source_dir()) / ".." / "shared"; }
 
 fs::path gradpu_weights() {
     return shared_dir() / "weights" / "gradpu" / "pugan-ckpt-epoch-60.pth";
+}
+
+fs::path pugaussian_weights() {
+    return shared_dir() / "weights" / "pugaussian" / "pu_gaussian_pugan_Best.pth";
+}
+
+/// A benchmark folder in the published layout holding only `meshes` of the shared one.
+fs::path benchmark_subset(const test::TempDir& dir, const std::vector<std::string>& meshes) {
+    const fs::path bench = shared_dir() / "benchmarks" / "pugan-test";
+    const fs::path data = dir.path() / "pugan";
+    for (const std::string folder : {"input_2048", "gt_8192", "original_meshes"}) {
+        fs::create_directories(data / folder);
+        for (const std::string& name : meshes) {
+            const std::string file = name + (folder == "original_meshes" ? ".off" : ".xyz");
+            fs::create_symlink(fs::absolute(bench / folder / file), data / folder / file);
+        }
+    }
+    return data;
+}
+
+bool have_benchmark() {
+    return fs::is_directory(shared_dir() / "benchmarks" / "pugan-test" / "input_2048");
 }
 
 test::CommandResult import(const std::string& file, const std::string& out,
@@ -94,22 +120,14 @@ TEST(CliImport, ImportedGradPuWeightsServeInfoAndUpsample) {
 // Agreement with the original (Grad-PU's own code and these weights, step size 50, CPU,
 // PyTorch 1.13, measured on the public meshes): 4x CD per mesh within 2 %.
 TEST(CliImport, ImportedGradPuScoresThreePublicMeshesAsTheOriginal) {
-    const fs::path bench = shared_dir() / "benchmarks" / "pugan-test";
-    if (!fs::exists(gradpu_weights()) || !fs::is_directory(bench / "input_2048"))
+    if (!fs::exists(gradpu_weights()) || !have_benchmark())
         GTEST_SKIP() << "no " << shared_dir().string();
     test::TempDir dir;
     const std::string model = dir.file("gradpu.pt");
     ASSERT_EQ(import(gradpu_weights().string(), model).exit_code, 0);
-    const fs::path data = dir.path() / "pugan";
     const std::map<std::string, double> original = {
         {"camel", 0.2086}, {"fandisk", 0.2436}, {"star", 0.3857}};
-    for (const std::string folder : {"input_2048", "gt_8192", "original_meshes"}) {
-        fs::create_directories(data / folder);
-        for (const auto& [name, cd] : original) {
-            const std::string file = name + (folder == "original_meshes" ? ".off" : ".xyz");
-            fs::create_symlink(fs::absolute(bench / folder / file), data / folder / file);
-        }
-    }
+    const fs::path data = benchmark_subset(dir, {"camel", "fandisk", "star"});
     const std::string out = dir.file("eval");
     const auto r = test::run_cli({"--threads", "1", "eval", "--benchmark", "pugan", "--data",
                                   data.string(), "--model", model, "--ratio", "4", "-o", out});
@@ -120,6 +138,86 @@ TEST(CliImport, ImportedGradPuScoresThreePublicMeshesAsTheOriginal) {
     for (size_t i = 1; i < rows.size(); ++i) {
         const double expected = original.at(rows[i][0]);
         EXPECT_NEAR(std::stod(rows[i][4]), expected, 0.02 * expected) << rows[i][0];
+    }
+}
+
+TEST(CliImport, PuGaussianWeightsImportAsPuGaussianOnly) {
+    if (!fs::exists(pugaussian_weights())) GTEST_SKIP() << "no " << pugaussian_weights().string();
+    test::TempDir dir;
+    const std::string out = dir.file("out.pt");
+    // Grad-PU's file is no PU-Gaussian: the first missing tensor is named.
+    if (fs::exists(gradpu_weights()))
+        EXPECT_TRUE(test::one_line_error(import(gradpu_weights().string(), out, "pugaussian"),
+                                         {"pugan-ckpt-epoch-60.pth", "tensor"}));
+    // Cut short, it is no archive.
+    const std::string whole = test::read_file(pugaussian_weights().string());
+    const std::string cut = dir.file("cut.pth");
+    test::write_file(cut, whole.substr(0, whole.size() / 2));
+    EXPECT_TRUE(test::one_line_error(import(cut, out, "pugaussian"), {"cut.pth"}));
+    // Grad-PU's refinement step means nothing to it.
+    const auto step =
+        test::run_cli({"import", "--from", "pugaussian", pugaussian_weights().string(), "-o", out,
+                       "--step-size", "50"});
+    EXPECT_TRUE(test::one_line_error(step, {"--step-size"}));
+    EXPECT_FALSE(fs::exists(out));
+}
+
+// The imported network: 268,109 parameters (the file's 275,086 less the feature projection
+// and confidence head that feed nothing); upsample writes exactly 4N distinct points near the
+// sphere they came from, the same bytes for the same seed and others for another.
+TEST(CliImport, ImportedPuGaussianWeightsServeInfoAndUpsample) {
+    if (!fs::exists(pugaussian_weights())) GTEST_SKIP() << "no " << pugaussian_weights().string();
+    test::TempDir dir;
+    const std::string model = dir.file("pugaussian.pt");
+    const auto imported = import(pugaussian_weights().string(), model, "pugaussian");
+    ASSERT_EQ(imported.exit_code, 0) << imported.err;
+    const auto info = test::run_cli({"info", model});
+    ASSERT_EQ(info.exit_code, 0) << info.err;
+    EXPECT_NE(info.out.find("pugaussian"), std::string::npos) << info.out;
+    EXPECT_NE(info.out.find("268109"), std::string::npos) << info.out;
+    EXPECT_NE(info.out.find("pu_gaussian_pugan_Best.pth"), std::string::npos) << info.out;
+
+    const std::string input = dir.file("sphere.xyz");
+    write_point_cloud(input, {test::sphere_points(600, 5), {}, {}});
+    auto upsample = [&](const std::string& output, const std::string& seed) {
+        const auto r = test::run_cli({"--threads", "1", "upsample", input, "-o", output, "--model",
+                                      model, "--ratio", "4", "--seed", seed});
+        EXPECT_EQ(r.exit_code, 0) << r.err;
+        return read_point_cloud(output).points;
+    };
+    const at::Tensor dense = upsample(dir.file("a.xyz"), "0");
+    EXPECT_EQ(dense.size(0), 2400);
+    EXPECT_EQ(count_distinct_points(dense), 2400);
+    const at::Tensor radius = dense.norm(2, 1);
+    EXPECT_LT((radius - 1).abs().mean().item<double>(), 0.01);
+    EXPECT_TRUE(dense.equal(upsample(dir.file("b.xyz"), "0")));
+    EXPECT_FALSE(dense.equal(upsample(dir.file("c.xyz"), "1")));
+}
+
+// Agreement with the original (its own code and these weights on a CPU, seeds 0, 1, 2, 4x):
+// the draws make each mesh's CD vary by up to 10 % from seed to seed, so each of pumeta's
+// must fall within the original's range widened by 10 %.
+TEST(CliImport, ImportedPuGaussianScoresThreePublicMeshesAsTheOriginal) {
+    if (!fs::exists(pugaussian_weights()) || !have_benchmark())
+        GTEST_SKIP() << "no " << shared_dir().string();
+    test::TempDir dir;
+    const std::string model = dir.file("pugaussian.pt");
+    ASSERT_EQ(import(pugaussian_weights().string(), model, "pugaussian").exit_code, 0);
+    const std::map<std::string, std::pair<double, double>> original = {
+        {"camel", {0.134, 0.137}}, {"fandisk", {0.220, 0.236}}, {"star", {0.368, 0.408}}};
+    const fs::path data = benchmark_subset(dir, {"camel", "fandisk", "star"});
+    const std::string out = dir.file("eval");
+    const auto r = test::run_cli({"--threads", "1", "eval", "--benchmark", "pugan", "--data",
+                                  data.string(), "--model", model, "--ratio", "4", "-o", out});
+    ASSERT_EQ(r.exit_code, 0) << r.err;
+    const auto rows = test::read_csv(out + "/cases.csv");
+    ASSERT_EQ(rows.size(), 4u);
+    ASSERT_EQ(rows[0][4], "cd_1e3");
+    for (size_t i = 1; i < rows.size(); ++i) {
+        const auto [low, high] = original.at(rows[i][0]);
+        const double cd = std::stod(rows[i][4]);
+        EXPECT_GT(cd, 0.9 * low) << rows[i][0];
+        EXPECT_LT(cd, 1.1 * high) << rows[i][0];
     }
 }
 

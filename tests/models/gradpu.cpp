@@ -145,7 +145,7 @@ TEST(GradPu, CloudPipelineReturnsEveryRefinedPointOfItsPatches) {
     at::NoGradGuard no_grad;
     GradPu model = small_model({{"steps", 0}});
     at::Tensor cloud = test::sphere_points(100, 9);
-    at::Tensor candidates = model.cloud_candidates(cloud, model.parameters());
+    at::Tensor candidates = model.cloud_candidates(cloud, model.parameters(), 0);
     // 400 interpolated points: int(400 / 64 · 3) = 18 patches of 64.
     EXPECT_EQ(candidates.sizes(), (std::vector<int64_t>{18 * 64, 3}));
     // Midpoints of a point and one of its 8 nearest (itself included).
@@ -175,9 +175,9 @@ TEST(GradPu, ImportedReleasedWeightsMoveInterpolatedPointsTowardsTheSurface) {
     auto to_surface = [&](const at::Tensor& points) {
         return knn(dense, points.contiguous(), 1).sq_distances.sqrt().mean().item<double>();
     };
-    const double refined = to_surface(model->cloud_candidates(cloud, model->parameters()));
+    const double refined = to_surface(model->cloud_candidates(cloud, model->parameters(), 0));
     const double start =
-        to_surface(interpolation.cloud_candidates(cloud, interpolation.parameters()));
+        to_surface(interpolation.cloud_candidates(cloud, interpolation.parameters(), 0));
     EXPECT_LT(refined, start);
 }
 

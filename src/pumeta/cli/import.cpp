@@ -5,6 +5,7 @@
 #include <spdlog/spdlog.h>
 
 #include "pumeta/cli/commands.h"
+#include "pumeta/core/error.h"
 #include "pumeta/core/sha256.h"
 #include "pumeta/models/checkpoint.h"
 
@@ -19,7 +20,9 @@ void add_import_command(CLI::App& app) {
     CLI::App* command = app.add_subcommand(
         "import", "convert released weights (a torch.save state dict) into a pumeta model");
     command->add_option("input", args->input, "the released file (.pth)")->required();
-    command->add_option("--from", args->format, "whose weights: gradpu")
+    command
+        ->add_option("--from", args->format,
+                     "whose weights: gradpu (Grad-PU) or pugaussian (PU-Gaussian)")
         ->required()
         ->check(CLI::IsMember(import_formats()));
     command->add_option("-o,--output", args->output, "pumeta model file to write (.pt)")
@@ -31,6 +34,8 @@ void add_import_command(CLI::App& app) {
         ->check(number_above(0));
     command->callback([args] {
         nlohmann::json config = nlohmann::json::object();
+        if (args->step_size > 0 && args->format != "gradpu")
+            throw_input_error("--step-size", "applies to --from gradpu only");
         if (args->step_size > 0) config["step_size"] = args->step_size;
         std::unique_ptr<Backbone> model = import_weights(args->format, args->input, config);
         const nlohmann::json provenance = {

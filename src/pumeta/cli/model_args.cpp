@@ -12,7 +12,10 @@ void add_model_options(CLI::App& command, ModelArgs& args, bool oracle_unit) {
                            models_dir() + "/defaults.json)");
     command.add_option("--ratio", args.ratio, "upsampling ratio (default: the model's)")
         ->check(integer_in(2, kMaxRatio));
-    command.add_option("--seed", args.seed, "seed of the test-time downsampler")
+    command
+        .add_option(
+            "--seed", args.seed,
+            "seed of the test-time downsampler and of the draws of a sampling model (PU-Gaussian)")
         ->check(seed_value());
     command
         .add_option("--tta-steps", args.tta_steps,

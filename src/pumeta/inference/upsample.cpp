@@ -286,7 +286,7 @@ at::Tensor upsample_own(const Backbone& model, const ParamMap& params, const at:
     at::Tensor candidates;
     {
         ThreadCountGuard one_thread(1);
-        candidates = model.cloud_candidates(cloud, params);
+        candidates = model.cloud_candidates(cloud, params, options.seed);
     }
     result.patches += 1;
     const ScanHandling scan(cloud, options);

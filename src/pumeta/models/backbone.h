@@ -60,9 +60,11 @@ class Backbone {
     virtual bool has_cloud_pipeline() const { return false; }
     /// That pipeline (Grad-PU's test: patches of the interpolated cloud, refined): candidates
     /// [M,3], M >= ratio·N, in the frame of `cloud` [N,3] (the input's unit sphere), from which
-    /// the inference pipeline selects exactly ratio·N; with `params`. Only called when
-    /// has_cloud_pipeline(). Default: undefined.
-    virtual at::Tensor cloud_candidates(const at::Tensor& cloud, const ParamMap& params) const {
+    /// the inference pipeline selects exactly ratio·N; with `params`; `seed` seeds whatever the
+    /// pipeline draws (PU-Gaussian's samples). Only called when has_cloud_pipeline(). Default:
+    /// undefined.
+    virtual at::Tensor cloud_candidates(const at::Tensor& cloud, const ParamMap& params,
+                                        uint64_t seed) const {
         return at::Tensor();
     }
 

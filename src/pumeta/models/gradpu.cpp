@@ -16,6 +16,7 @@
 #include "pumeta/inference/upsample.h"
 #include "pumeta/models/config_fields.h"
 #include "pumeta/models/downsample.h"
+#include "pumeta/models/patch_frame.h"
 #include "pumeta/nn/batch_norm.h"
 #include "pumeta/nn/conv.h"
 #include "pumeta/nn/init.h"
@@ -77,19 +78,6 @@ at::Tensor nearest(const at::Tensor& points, const at::Tensor& queries, int64_t 
                queries.detach().to(at::kFloat).contiguous(), k)
         .indices;
 }
-
-/// Each cloud of x [B,M,3] on its unit sphere: centroid [B,1,3] and furthest distance
-/// [B,1,1] (the original's normalize_point_cloud).
-struct PatchFrame {
-    at::Tensor centroid, radius;
-    explicit PatchFrame(const at::Tensor& x) {
-        centroid = x.mean(1, /*keepdim=*/true);
-        radius = (x - centroid).norm(2, -1, /*keepdim=*/true).amax(1, /*keepdim=*/true);
-        radius = at::where(radius > 0, radius, at::ones_like(radius));
-    }
-    at::Tensor apply(const at::Tensor& x) const { return (x - centroid) / radius; }
-    at::Tensor invert(const at::Tensor& x) const { return x * radius + centroid; }
-};
 
 }  // namespace
 
@@ -272,7 +260,7 @@ at::Tensor GradPu::upsample(const at::Tensor& x, const ParamMap& params) const {
         // A patch larger than a refinement patch is a cloud: the whole pipeline per patch.
         std::vector<at::Tensor> outputs;
         for (int64_t b = 0; b < x.size(0); ++b) {
-            at::Tensor candidates = cloud_candidates(x[b], params);
+            at::Tensor candidates = cloud_candidates(x[b], params, options_.seed);
             outputs.push_back(candidates.index_select(0, farthest_point_sampling(candidates, m)));
         }
         return at::stack(outputs, 0);
@@ -284,7 +272,8 @@ at::Tensor GradPu::upsample(const at::Tensor& x, const ParamMap& params) const {
     return frame.invert(refine(frame.apply(interpolated), params, point_step));
 }
 
-at::Tensor GradPu::cloud_candidates(const at::Tensor& cloud, const ParamMap& params) const {
+at::Tensor GradPu::cloud_candidates(const at::Tensor& cloud, const ParamMap& params,
+                                    uint64_t /*seed*/) const {
     check_points(cloud, "gradpu input", 2);
     at::NoGradGuard no_grad;
     const PatchFrame frame(cloud.unsqueeze(0));

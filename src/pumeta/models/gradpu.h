@@ -79,8 +79,10 @@ class GradPu : public Backbone {
     /// normalised to the unit sphere, interpolated to r·N midpoints, cut into
     /// int(r·N / refine_patch_size · patch_rate) patches of the refine_patch_size nearest
     /// interpolated points around FPS seeds, each normalised, refined, restored: every refined
-    /// point of every patch, [P·refine_patch_size, 3], for the final selection.
-    at::Tensor cloud_candidates(const at::Tensor& cloud, const ParamMap& params) const override;
+    /// point of every patch, [P·refine_patch_size, 3], for the final selection. Deterministic:
+    /// `seed` is not used.
+    at::Tensor cloud_candidates(const at::Tensor& cloud, const ParamMap& params,
+                                uint64_t seed) const override;
     bool has_cloud_pipeline() const override { return true; }
 
     /// The original's training loss: L1 between the predicted and the true distance (to the

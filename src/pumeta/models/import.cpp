@@ -2,12 +2,14 @@
 
 #include <ATen/ATen.h>
 
+#include <functional>
 #include <map>
 #include <set>
 
 #include "pumeta/core/error.h"
 #include "pumeta/core/tensor_checks.h"
 #include "pumeta/models/gradpu.h"
+#include "pumeta/models/pugaussian.h"
 
 namespace pumeta {
 
@@ -53,6 +55,59 @@ NameMap gradpu_names(const GradPuOptions& o) {
     return names;
 }
 
+/// PU-Gaussian's PU_Gaussian module (model/models.py, GaussianNetwork.py, PUCRN.py).
+NameMap pugaussian_names() {
+    NameMap names;
+    auto two_layers = [&](const std::string& to, const std::string& from, const char* second) {
+        map_conv(names, to + ".0", from + ".0", false);
+        map_conv(names, to + ".1", from + "." + second, false);
+    };
+    // nn.Sequential(Conv2d, BatchNorm2d, ReLU, Conv2d) of the position and attention MLPs.
+    auto norm_mlp = [&](const std::string& to0, const std::string& to1, const std::string& from) {
+        map_conv(names, to0, from + ".0", false);
+        names[to0 + ".bn.gamma"] = from + ".1.weight";
+        names[to0 + ".bn.beta"] = from + ".1.bias";
+        names[to0 + ".bn.running_mean"] = from + ".1.running_mean";
+        names[to0 + ".bn.running_var"] = from + ".1.running_var";
+        map_conv(names, to1, from + ".3", false);
+    };
+    auto transformer = [&](const std::string& to, const std::string& from) {
+        map_conv(names, to + ".start", from + ".linear_start", false);
+        map_conv(names, to + ".end", from + ".linear_end", false);
+        for (const char* name : {"query", "key", "value"})
+            map_conv(names, to + "." + name, from + ".conv_" + name, false);
+        norm_mlp(to + ".pos0", to + ".pos1", from + ".pos_mlp");
+        norm_mlp(to + ".attn0", to + ".attn1", from + ".attn_mlp");
+    };
+    const std::string gaussian = "Gaussian.feature_extractor";
+    two_layers("gaussian.mlp1", gaussian + ".extractor.mlp_1.mlp", "2");
+    two_layers("gaussian.mlp2", gaussian + ".extractor.mlp_2.mlp", "2");
+    transformer("gaussian.transformer", gaussian + ".extractor.point_transformer");
+    two_layers("gaussian.offset", gaussian + ".mean_head", "2");
+    two_layers("gaussian.scale", gaussian + ".scale_head", "2");
+    two_layers("gaussian.rotation", gaussian + ".rot_head", "2");
+    const std::string refine = "refinement";
+    two_layers("refine.mlp1", refine + ".feature_extractor.mlp_1.mlp", "2");
+    two_layers("refine.mlp2", refine + ".feature_extractor.mlp_2.mlp", "2");
+    transformer("refine.transformer", refine + ".feature_extractor.point_transformer");
+    two_layers("refine.up.mlp", refine + ".up_unit.mlp_1.mlp", "2");
+    names["refine.up.deconv.weight"] = refine + ".up_unit.deconv_branch.weight";
+    map_conv(names, "refine.up.res.conv1", refine + ".up_unit.mlp_2.conv_1", false);
+    map_conv(names, "refine.up.res.conv2", refine + ".up_unit.mlp_2.conv_2", false);
+    map_conv(names, "refine.up.res.shortcut", refine + ".up_unit.mlp_2.conv_shortcut", false);
+    two_layers("refine.regressor", refine + ".regressor.mlp", "2");
+    return names;
+}
+
+/// Tensors of a PU-Gaussian file that feed nothing: a feature projection its forward pass
+/// never calls and the confidence head, whose output is discarded.
+bool pugaussian_unused(const std::string& name) {
+    for (const char* prefix : {"Gaussian.feature_extractor.extractor.mlp_proj.",
+                               "Gaussian.feature_extractor.confidence_head."})
+        if (name.rfind(prefix, 0) == 0) return true;
+    return false;
+}
+
 /// `source` without the trailing 1s a convolution kernel adds ([O,I,1] or [O,I,1,1] for a
 /// pumeta [O,I]), when that gives `shape`.
 at::Tensor fitted(const at::Tensor& source, at::IntArrayRef shape) {
@@ -84,16 +139,26 @@ void fill(ParamMap& targets, const NameMap& names, const std::map<std::string, a
 
 }  // namespace
 
-std::vector<std::string> import_formats() { return {"gradpu"}; }
+std::vector<std::string> import_formats() { return {"gradpu", "pugaussian"}; }
 
 std::unique_ptr<Backbone> import_state_dict(const std::string& format, const StateDict& dict,
                                             const std::string& path, const nlohmann::json& config) {
-    if (format != "gradpu")
-        throw_input_error("--from", "unknown format '{}' (known: gradpu)", format);
     nlohmann::json full = config;
-    full["backbone"] = "gradpu";
-    auto model = std::make_unique<GradPu>(GradPuOptions::from_json(full));
-    const NameMap names = gradpu_names(model->options());
+    full["backbone"] = format;
+    std::unique_ptr<Backbone> model;
+    NameMap names;
+    std::function<bool(const std::string&)> unused = [](const std::string&) { return false; };
+    if (format == "gradpu") {
+        auto gradpu = std::make_unique<GradPu>(GradPuOptions::from_json(full));
+        names = gradpu_names(gradpu->options());
+        model = std::move(gradpu);
+    } else if (format == "pugaussian") {
+        model = std::make_unique<PuGaussian>(PuGaussianOptions::from_json(full));
+        names = pugaussian_names();
+        unused = pugaussian_unused;
+    } else {
+        throw_input_error("--from", "unknown format '{}' (known: gradpu, pugaussian)", format);
+    }
     std::map<std::string, at::Tensor> source;
     for (const auto& [name, tensor] : dict)
         if (!source.emplace(name, tensor).second)
@@ -105,7 +170,7 @@ std::unique_ptr<Backbone> import_state_dict(const std::string& format, const Sta
         const std::string suffix = ".num_batches_tracked";
         const bool counter = name.size() > suffix.size() &&
                              name.compare(name.size() - suffix.size(), suffix.size(), suffix) == 0;
-        if (!used.count(name) && !counter)
+        if (!used.count(name) && !counter && !unused(name))
             throw_input_error(path,
                               "tensor {} belongs to no part of a {} network; is this a {} "
                               "checkpoint?",

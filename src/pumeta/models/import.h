@@ -13,7 +13,9 @@
 
 namespace pumeta {
 
-/// The formats import_weights reads: "gradpu" (yunhe20/Grad-PU's P2PNet state dict).
+/// The formats import_weights reads: "gradpu" (yunhe20/Grad-PU's P2PNet state dict) and
+/// "pugaussian" (mvg-inatech/PU-Gaussian's PU_Gaussian state dict; its unused feature
+/// projection and confidence head are skipped).
 std::vector<std::string> import_formats();
 
 /// `dict`, read from `path`, as a backbone of format `format` built from `config` (the kind's

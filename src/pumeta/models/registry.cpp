@@ -12,6 +12,7 @@
 #include "pumeta/models/mpu.h"
 #include "pumeta/models/pudense.h"
 #include "pumeta/models/pugan.h"
+#include "pumeta/models/pugaussian.h"
 #include "pumeta/models/pugcn.h"
 
 namespace pumeta {
@@ -41,6 +42,7 @@ void register_builtin_backbones() {
     register_backbone("pugan", make_pugan, pugan_small_config());
     register_backbone("mpu", make_mpu, mpu_small_config());
     register_backbone("gradpu", make_gradpu, gradpu_small_config());
+    register_backbone("pugaussian", make_pugaussian, pugaussian_small_config());
 }
 
 void ensure_builtins_registered() {
