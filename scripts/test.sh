@@ -3,6 +3,6 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
-scripts/build.sh
+scripts/build.sh -DPUMETA_WERROR=ON
 cd build
 ctest --output-on-failure -j"$(nproc)" --timeout 900

@@ -4,6 +4,7 @@
 #include <iostream>
 
 #include "pumeta/cli/commands.h"
+#include "pumeta/core/version.h"
 #include "pumeta/data/patch_set.h"
 #include "pumeta/inference/model_file.h"
 #include "pumeta/inference/upsample.h"
@@ -141,9 +142,11 @@ void add_info_command(CLI::App& app) {
                               : is_patch_set_file(args->path)
                                   ? patch_set_info(args->path)
                                   : geometry_info(args->path, args->read);
-        if (args->json)
+        if (args->json) {
+            // Which pumeta read the file: version, commit, LibTorch, BLAS.
+            info["pumeta"] = build_info();
             print_json(info);
-        else
+        } else
             print_text(info);
     });
 }

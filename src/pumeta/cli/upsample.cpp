@@ -23,7 +23,7 @@ void add_upsample_command(CLI::App& app) {
     command->add_option("input", args->input, "input cloud (any readable format)")->required();
     command->add_option("-o,--output", args->output, "output cloud")->required();
     command->add_flag("--json", args->json,
-                      "print n_in, n_out, seconds (and tta_* fields) as JSON");
+                      "print n_in, n_out, seconds, the model file (and tta_* fields) as JSON");
     add_read_options(*command, args->read);
     add_model_options(*command, args->model, /*oracle_unit=*/false);
     command->callback([args] {
@@ -40,8 +40,10 @@ void add_upsample_command(CLI::App& app) {
         options.show_progress = true;
         UpsampleResult result = upsample_cloud(*served.model.backbone, cloud.points, options);
         write_point_cloud(args->output, {result.points});
-        nlohmann::json j = {
-            {"n_in", result.n_in}, {"n_out", result.points.size(0)}, {"seconds", result.seconds}};
+        nlohmann::json j = {{"n_in", result.n_in},
+                            {"n_out", result.points.size(0)},
+                            {"seconds", result.seconds},
+                            {"model", served.path}};
         if (options.adaptation.inner.steps > 0) {
             j["tta_steps"] = options.adaptation.inner.steps;
             j["tta_seconds"] = result.tta_seconds;

@@ -13,6 +13,7 @@
 
 #include "pumeta/core/error.h"
 #include "pumeta/core/progress.h"
+#include "pumeta/core/version.h"
 #include "pumeta/eval/benchmark_protocol.h"
 #include "pumeta/eval/cases_csv.h"
 #include "pumeta/geometry/io.h"
@@ -245,6 +246,7 @@ nlohmann::json evaluate_benchmark(const BenchmarkLayout& layout, const Backbone*
         summary["note"] = note;
         spdlog::warn("eval: {}", note);
     }
+    summary["pumeta"] = build_info();
     std::ofstream(fs::path(out_dir) / "summary.json") << summary.dump(2) << "\n";
     return summary;
 }

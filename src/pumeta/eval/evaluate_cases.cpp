@@ -13,6 +13,7 @@
 
 #include "pumeta/core/error.h"
 #include "pumeta/core/progress.h"
+#include "pumeta/core/version.h"
 #include "pumeta/data/layout.h"
 #include "pumeta/eval/cases_csv.h"
 #include "pumeta/eval/grid_floor.h"
@@ -252,6 +253,7 @@ nlohmann::json evaluate_cases(const std::string& cases_dir, const Backbone* mode
         tta["inner_loss_improved"] = improved_inner;
         summary["tta"] = tta;
     }
+    summary["pumeta"] = build_info();
     std::ofstream(fs::path(out_dir) / "summary.json") << summary.dump(2) << "\n";
     return summary;
 }

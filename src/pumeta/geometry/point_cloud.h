@@ -13,8 +13,8 @@ namespace pumeta {
 ///   colors:  uint8   [N,3] or undefined
 struct PointCloud {
     at::Tensor points;
-    at::Tensor normals;
-    at::Tensor colors;
+    at::Tensor normals{};
+    at::Tensor colors{};
 
     int64_t size() const { return points.defined() ? points.size(0) : 0; }
     bool has_normals() const { return normals.defined(); }

@@ -37,18 +37,26 @@ InferenceModel load_inference_model(const std::string& path, int64_t ratio) {
 
 ServedModel serve(const std::string& path, int64_t ratio) {
     ServedModel served;
-    served.model =
-        load_inference_model(path.empty() ? default_model_for_ratio(ratio) : path, ratio);
+    served.path = path.empty() ? default_model_for_ratio(ratio) : path;
+    served.model = load_inference_model(served.path, ratio);
     served.ratio = output_ratio(*served.model.backbone, ratio);
     return served;
 }
 
 std::string models_dir() {
     if (const char* dir = std::getenv("PUMETA_MODELS")) return dir;
+    std::error_code error;
+    // An installed binary uses the models installed beside it (PREFIX/bin/pumeta ->
+    // PREFIX/share/pumeta/models), wherever the prefix was moved (a package unpacked elsewhere).
+    const std::filesystem::path executable = std::filesystem::read_symlink("/proc/self/exe", error);
+    if (!error) {
+        const std::filesystem::path beside =
+            executable.parent_path().parent_path() / "share" / "pumeta" / "models";
+        if (std::filesystem::exists(beside / "defaults.json", error)) return beside.string();
+    }
     // PUMETA_INSTALLED_MODELS_DIR (set by CMake on this file only) is where `cmake --install`
     // puts the models: an installed library uses them, a build tree its source tree's.
     const std::filesystem::path installed = PUMETA_INSTALLED_MODELS_DIR;
-    std::error_code error;
     if (std::filesystem::exists(installed / "defaults.json", error)) return installed.string();
     return (std::filesystem::path(PUMETA_SOURCE_DIR) / "models").string();
 }

@@ -32,6 +32,8 @@ inline constexpr int64_t kDefaultRatio = 4;
 struct ServedModel {
     InferenceModel model;
     int64_t ratio = 0;
+    /// The file it was loaded from.
+    std::string path;
 };
 
 /// The one place that decides which model serves which output ratio: `path`, or when empty the
@@ -40,9 +42,11 @@ struct ServedModel {
 /// a power of the model's (applied repeatedly), else an InputError naming both.
 ServedModel serve(const std::string& path, int64_t ratio);
 
-/// The directory of the shipped models: $PUMETA_MODELS if set, else the installed models
-/// (<install prefix>/share/pumeta/models) when they hold defaults.json, else the source tree's
-/// models/. A library installed elsewhere than its configured prefix needs $PUMETA_MODELS.
+/// The directory of the shipped models: $PUMETA_MODELS if set, else share/pumeta/models beside
+/// the running program's bin/ (an installed or unpacked package), else the installed models
+/// (<install prefix>/share/pumeta/models), each only when it holds defaults.json, else the
+/// source tree's models/. A library installed elsewhere than its configured prefix, in a
+/// program outside that prefix, needs $PUMETA_MODELS.
 std::string models_dir();
 
 /// The family of the shipped default models: "family" of models_dir()/defaults.json

@@ -33,7 +33,7 @@ struct InnerLoop {
     /// α for every adapting parameter without a per-tensor step size.
     double step_size = 1e-5;
     /// Name prefixes of the parameters that adapt (e.g. "upsample."); empty = all.
-    std::vector<std::string> adapt;
+    std::vector<std::string> adapt{};
     /// FOMAML: with create_graph, the inner gradients are constants of the outer gradient.
     bool first_order = false;
     InnerOptimizer optimizer = InnerOptimizer::kSgd;

@@ -40,10 +40,10 @@ at::Tensor softmin(double eps, const at::Tensor& p, const at::Tensor& q, const a
 // the soft assignment P_ij = softmax_j(h_j − C_ij / ε), and with `largest` > 0 the indices and
 // weights of the `largest` biggest P_ij of each row.
 struct Softmin {
-    at::Tensor value;        ///< [N]
-    at::Tensor mean_target;  ///< [N,3]
-    at::Tensor top_index;    ///< int64 [N,K]
-    at::Tensor top_weight;   ///< [N,K]
+    at::Tensor value;          ///< [N]
+    at::Tensor mean_target{};  ///< [N,3]
+    at::Tensor top_index{};    ///< int64 [N,K]
+    at::Tensor top_weight{};   ///< [N,K]
 };
 Softmin softmin_blocked(double eps, const at::Tensor& p, const at::Tensor& q, const at::Tensor& h,
                         bool mean_target, int64_t largest = 0) {
