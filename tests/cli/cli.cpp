@@ -5,6 +5,8 @@
 
 #include <filesystem>
 #include <fstream>
+#include <string>
+#include <utility>
 
 #include "pumeta/data/patch_set.h"
 #include "pumeta/data/shapes.h"
@@ -119,6 +121,35 @@ TEST(Cli, UpsampleGivesTheSameBytesWithOneOrTwoThreads) {
             EXPECT_EQ(test::read_file(outputs[0]), test::read_file(outputs[1]))
                 << kernel << " kernel, " << input << " input";
         }
+}
+
+/// Width and height of a PNG file, from its IHDR chunk.
+std::pair<int, int> png_size(const std::string& path) {
+    const std::string bytes = test::read_file(path);
+    auto be32 = [&](size_t at) {
+        return int((uint8_t(bytes.at(at)) << 24) | (uint8_t(bytes.at(at + 1)) << 16) |
+                   (uint8_t(bytes.at(at + 2)) << 8) | uint8_t(bytes.at(at + 3)));
+    };
+    return {be32(16), be32(20)};
+}
+
+// An error picture (render --error-to) carries its scale: a colour bar and caption under the
+// render, which a plain render has not.
+TEST(Cli, AnErrorPictureCarriesItsColourBar) {
+    test::TempDir dir;
+    const std::string pred = dir.file("pred.xyz"), gt = dir.file("gt.xyz");
+    write_point_cloud(pred, {test::sphere_points(400, 1), {}, {}});
+    write_point_cloud(gt, {test::sphere_points(1600, 2), {}, {}});
+    const auto plain =
+        test::run_cli({"render", pred, "-o", dir.file("plain.png"), "--size", "200"});
+    ASSERT_EQ(plain.exit_code, 0) << plain.err;
+    EXPECT_EQ(png_size(dir.file("plain.png")), std::make_pair(200, 200));
+    const auto error = test::run_cli(
+        {"render", pred, "--error-to", gt, "-o", dir.file("error.png"), "--size", "200"});
+    ASSERT_EQ(error.exit_code, 0) << error.err;
+    const auto [width, height] = png_size(dir.file("error.png"));
+    EXPECT_EQ(width, 200);
+    EXPECT_GT(height, 230);
 }
 
 TEST(Cli, AConfigNumberOutOfRangeIsAOneLineInputError) {

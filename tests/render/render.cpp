@@ -300,6 +300,34 @@ TEST(Render, ErrorColoursShareOneScaleUpToThe95thPercentile) {
     EXPECT_TRUE(error_colors({}).empty());
 }
 
+// The strip under an error picture: the image unchanged above it, the bar from the colour
+// of lo on the left to that of hi on the right, dark label pixels under it.
+TEST(Render, ColorBarShowsTheScaleUnderTheImage) {
+    Image image(200, 100, {10, 20, 30});
+    const Image out = with_color_bar(image, 0, 0.5, "", "distance to gt.xyz");
+    ASSERT_EQ(out.width, 200);
+    ASSERT_GT(out.height, 130);
+    for (int y : {0, 99})
+        for (int c = 0; c < 3; ++c) EXPECT_EQ(out.pixel(100, y)[c], image.pixel(100, y)[c]);
+    // The bar's first and last columns, in the middle of its height.
+    int bar_y = -1;
+    for (int y = 100; y < out.height && bar_y < 0; ++y)
+        if (out.pixel(out.width / 2, y)[0] != 255 || out.pixel(out.width / 2, y)[2] != 255)
+            bar_y = y + 4;
+    ASSERT_GE(bar_y, 100);
+    const at::Tensor ends = colormap(at::tensor({0.0f, 0.5f}), 0, 0.5);
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(out.pixel(8, bar_y)[c], 255 * ends[0][c].item<float>(), 1.0);
+        EXPECT_NEAR(out.pixel(out.width - 9, bar_y)[c], 255 * ends[1][c].item<float>(), 1.0);
+    }
+    // Text below the bar: some dark pixels.
+    int dark = 0;
+    for (int y = bar_y + 8; y < out.height; ++y)
+        for (int x = 0; x < out.width; ++x) dark += out.pixel(x, y)[0] < 100;
+    EXPECT_GT(dark, 50);
+    EXPECT_THROW(with_color_bar(image, 1, 1, "", ""), InputError);
+}
+
 TEST(Render, RejectsBadInputs) {
     at::Tensor cloud = uniform_random_points(10, 1);
     EXPECT_THROW(render_image(at::zeros({4, 2})), InputError);

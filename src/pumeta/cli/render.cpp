@@ -51,23 +51,32 @@ void add_render_command(CLI::App& app) {
         std::vector<Image> images;
         std::vector<std::string> labels;
         std::vector<at::Tensor> colors(clouds.size());
+        double scale = 0;
         if (reference.defined()) {
             std::vector<at::Tensor> distances;
             for (const at::Tensor& cloud : clouds)
                 distances.push_back(knn(reference, cloud, 1).sq_distances.squeeze(1).sqrt());
             colors = error_colors(distances);
+            scale = error_scale(distances);
         }
+        // Under an error picture, its scale: the colour bar in the files' own units.
+        auto finish = [&](const Image& image) {
+            if (scale <= 0) return image;
+            const std::string gt = args->error_to.substr(args->error_to.find_last_of('/') + 1);
+            return with_color_bar(image, 0, scale, "",
+                                  "distance to " + gt + " in its units (yellow: top 5 %)");
+        };
         for (size_t i = 0; i < clouds.size(); ++i) {
             images.push_back(render_image(clouds[i], options, colors[i]));
             std::string name = args->inputs[i];
             labels.push_back(name.substr(name.find_last_of('/') + 1));
         }
         if (images.size() == 1) {
-            write_png(args->output, images[0]);
+            write_png(args->output, finish(images[0]));
             return;
         }
         int columns = args->columns > 0 ? args->columns : static_cast<int>(images.size());
-        write_png(args->output, render_grid(images, columns, labels));
+        write_png(args->output, finish(render_grid(images, columns, labels)));
     });
 }
 

@@ -1,6 +1,7 @@
 #include "pumeta/render/render.h"
 
 #include <ATen/ATen.h>
+#include <fmt/format.h>
 #include <stb/stb_image_write.h>
 
 #include <algorithm>
@@ -371,13 +372,50 @@ at::Tensor colormap(const at::Tensor& values) {
     return colormap(values, finite.min().item<double>(), finite.max().item<double>());
 }
 
+double error_scale(const std::vector<at::Tensor>& distances) {
+    if (distances.empty()) return 0;
+    const at::Tensor all = at::cat(distances).to(at::kDouble);
+    return all.numel() > 0 ? at::quantile(all, 0.95).item<double>() : 0.0;
+}
+
 std::vector<at::Tensor> error_colors(const std::vector<at::Tensor>& distances) {
     if (distances.empty()) return {};
-    const at::Tensor all = at::cat(distances).to(at::kDouble);
-    const double hi = all.numel() > 0 ? at::quantile(all, 0.95).item<double>() : 0.0;
+    const double hi = error_scale(distances);
     std::vector<at::Tensor> colors;
     for (const at::Tensor& d : distances) colors.push_back(colormap(d, 0, hi));
     return colors;
+}
+
+Image with_color_bar(const Image& image, double lo, double hi, const std::string& unit,
+                     const std::string& caption) {
+    if (!(lo < hi)) throw_input_error("color bar", "needs lo < hi, found {} and {}", lo, hi);
+    const int width = std::max(image.width, 160);
+    // Font pixels per unit: 2 on large images where the caption then fits.
+    const int scale = width >= 480 && text_width(caption, 2) <= width - 16 ? 2 : 1;
+    const int line = 12 * scale, margin = 8 * scale, bar_height = 10 * scale;
+    const int bar_left = margin, bar_right = width - margin;
+    Image out(width, image.height + bar_height + 2 * line + 3 * margin, {255, 255, 255});
+    for (int y = 0; y < image.height; ++y)
+        std::memcpy(out.pixel((width - image.width) / 2, y), image.pixel(0, y), 3 * image.width);
+    // The bar: one column per value from lo to hi.
+    const at::Tensor values = at::linspace(lo, hi, bar_right - bar_left, at::kFloat);
+    const at::Tensor colors = colormap(values, lo, hi);
+    const float* rgb = colors.data_ptr<float>();
+    const int top = image.height + margin;
+    for (int x = bar_left; x < bar_right; ++x)
+        for (int y = top; y < top + bar_height; ++y)
+            for (int c = 0; c < 3; ++c)
+                out.pixel(x, y)[c] =
+                    static_cast<uint8_t>(std::lround(255 * rgb[3 * (x - bar_left) + c]));
+    // The ends' values, then the caption.
+    const std::string suffix = unit.empty() ? "" : " " + unit;
+    const std::string low = fmt::format("{:.3g}{}", lo, suffix);
+    const std::string high = fmt::format(">= {:.3g}{}", hi, suffix);
+    const int labels = top + bar_height + margin / 2;
+    draw_text(out, low, bar_left + text_width(low, scale) / 2, labels, scale);
+    draw_text(out, high, bar_right - text_width(high, scale) / 2, labels, scale);
+    draw_text(out, caption, width / 2, labels + line, scale);
+    return out;
 }
 
 }  // namespace pumeta

@@ -118,4 +118,14 @@ at::Tensor colormap(const at::Tensor& values);
 /// the rest.
 std::vector<at::Tensor> error_colors(const std::vector<at::Tensor>& distances);
 
+/// The top of error_colors' scale: the 95th percentile of all distances together (0 for none).
+double error_scale(const std::vector<at::Tensor>& distances);
+
+/// `image` with a strip below it: a colour bar of colormap from `lo` (left) to `hi` (right),
+/// its two ends labelled with their values and `unit` (may be empty), and a caption line under
+/// it (what the colours measure). The image keeps its width (at least 160 pixels wide);
+/// InputError unless lo < hi.
+Image with_color_bar(const Image& image, double lo, double hi, const std::string& unit,
+                     const std::string& caption);
+
 }  // namespace pumeta
