@@ -212,6 +212,32 @@ TEST_F(ReproduceTest, TableEightHasTheScanSetsWithEveryBackboneAndItsPairedOurs)
                      .contains("table8"));
 }
 
+// Reference models (e.g. imported released weights) get a plain row where their file exists;
+// a missing file is a note, not a failure.
+TEST_F(ReproduceTest, ReferenceModelsGetAPlainRowWhereTheirFileExists) {
+    nlohmann::json j = *config_;
+    j["scan_sets"] = {"test-indist"};
+    j["scan_ratios"] = {4};
+    j["noise"] = nlohmann::json::array();
+    j["sweep_backbones"] = nlohmann::json::array();
+    j["zero_shot"]["max_cases"] = 0;
+    const fs::path imported = dir_->path() / "imported-pugaussian.pt";
+    save_checkpoint(imported.string(), *make_backbone(small_backbone_config("pugaussian")));
+    j["reference_models"] = {{{"label", "PU-Gaussian (imported)"}, {"model", imported.string()}},
+                             {{"label", "Absent"}, {"model", (dir_->path() / "no.pt").string()}}};
+    fs::path out = dir_->path() / "reference-models";
+    nlohmann::json tables = reproduce(ReproduceConfig::from_json(j, "quick"), out.string(), "test");
+
+    const nlohmann::json& reference = row(tables.at("table8").at("x4"), "PU-Gaussian (imported)");
+    nlohmann::json summary =
+        read_json(out / "runs/test-indist-x4" / imported.stem() / "summary.json");
+    const double cd = summary["cd"]["mean"].get<double>();
+    EXPECT_NEAR(reference["cells"][0]["mean"].get<double>(), cd, 1e-8 * cd);
+    const std::string missing = tables.at("missing").dump();
+    EXPECT_NE(missing.find("Absent: no file"), std::string::npos) << missing;
+    EXPECT_EQ(missing.find("PU-Gaussian (imported)"), std::string::npos) << missing;
+}
+
 TEST_F(ReproduceTest, TableSevenTakesItsOwnBackbonesWithoutTheirOtherTables) {
     // any_ratio_backbones names Meta-PU for Table VII only: the other tables keep `backbones`.
     nlohmann::json j = any_ratio_config("models-any-ratio-only");

@@ -43,6 +43,25 @@ nlohmann::json ExternalBaseline::to_json() const {
 }
 
 template <class Self, class Visit>
+void reference_model_fields(Self& m, Visit&& visit) {
+    visit("label", m.label);
+    visit("model", m.model);
+}
+
+ReferenceModel ReferenceModel::from_json(const nlohmann::json& j) {
+    ReferenceModel m;
+    read_fields(j, "reproduce config: reference model",
+                [&](auto&& visit) { reference_model_fields(m, visit); });
+    if (m.label.empty() || m.model.empty())
+        throw_input_error(kContext, "each reference model needs a 'label' and a 'model'");
+    return m;
+}
+
+nlohmann::json ReferenceModel::to_json() const {
+    return write_fields([&](auto&& visit) { reference_model_fields(*this, visit); });
+}
+
+template <class Self, class Visit>
 void zero_shot_fields(Self& z, Visit&& visit) {
     visit("steps", z.steps);
     visit("batch_patches", z.batch_patches);
@@ -71,6 +90,7 @@ void reproduce_fields(Self& c, Visit&& visit) {
     visit("backbones", c.backbones);
     visit("backbone_labels", c.backbone_labels);
     visit("external_baselines", c.external_baselines);
+    visit("reference_models", c.reference_models);
     visit("main_ratio", c.main_ratio);
     visit("table3_ratios", c.table3_ratios);
     visit("any_ratios", c.any_ratios);

@@ -25,6 +25,18 @@ struct ExternalBaseline {
     nlohmann::json to_json() const;
 };
 
+/// A model file that is not one of pumeta's backbones' shipped files, e.g. released weights
+/// imported with `pumeta import`: a plain reference row where the file exists and serves the
+/// table's ratio.
+struct ReferenceModel {
+    std::string label;
+    /// The model file (relative to the working directory).
+    std::string model;
+
+    static ReferenceModel from_json(const nlohmann::json& j);
+    nlohmann::json to_json() const;
+};
+
 /// `command` with every "{bindir}" replaced by the directory of this executable.
 std::string with_bindir(std::string command);
 
@@ -54,6 +66,8 @@ struct ReproduceConfig {
     std::map<std::string, std::string> backbone_labels;
     /// Classical baselines of Table I (rows only where the program exists).
     std::vector<ExternalBaseline> external_baselines;
+    /// Reference rows of Tables I and VIII from other model files (imported released weights).
+    std::vector<ReferenceModel> reference_models;
     /// Ratio of Tables I, II, IV and V (the paper's 8×).
     int64_t main_ratio = 8;
     /// Ratios of Table III (the paper's 4× and 16×).

@@ -4,6 +4,10 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <filesystem>
+
+#include "pumeta/core/error.h"
+#include "pumeta/inference/model_file.h"
 
 namespace pumeta {
 
@@ -73,9 +77,9 @@ std::string counts_line(TablePass& pass, int64_t ratio) {
     return text;
 }
 
-/// Rows that need no model at ratio r on `sets`: the input itself, the sampling floor (where
-/// the cases have a second GT sample), the midpoint baseline and the external baselines whose
-/// program exists.
+/// Rows that need no backbone of pumeta's at ratio r on `sets`: the input itself, the sampling
+/// floor (where the cases have a second GT sample), the midpoint baseline, the external
+/// baselines whose program exists and the reference models whose file exists and serves r.
 void reference_rows(TablePass& pass, const std::vector<std::string>& sets, int64_t r, bool floor,
                     std::vector<TableWriter::Row>& rows) {
     auto reference_row = [&](const std::string& label, const std::string& method) {
@@ -107,6 +111,27 @@ void reference_rows(TablePass& pass, const std::vector<std::string>& sets, int64
                                          // this binary was run from.
                                          s.command = baseline.command;
                                          return &pass.cells.get(s);
+                                     }),
+                        {}});
+    }
+    for (const ReferenceModel& reference : pass.config.reference_models) {
+        std::error_code error;
+        if (!std::filesystem::exists(reference.model, error)) {
+            pass.notes.push_back(fmt::format("{}: no file {} (no row; `pumeta import` makes it)",
+                                             reference.label, reference.model));
+            continue;
+        }
+        try {
+            serve(reference.model, r);
+        } catch (const InputError& e) {
+            pass.notes.push_back(
+                fmt::format("{} at {}×: no row ({})", reference.label, r, e.what()));
+            continue;
+        }
+        rows.push_back({reference.label,
+                        pass.per_set(sets,
+                                     [&](const std::string& set) {
+                                         return pass.network(set, r, reference.model, 0);
                                      }),
                         {}});
     }
