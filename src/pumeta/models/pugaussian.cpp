@@ -321,23 +321,69 @@ PuGaussian::Stages PuGaussian::forward_collecting(const at::Tensor& x, const at:
     // The refinement, the same weights each pass; every point of the coarse patch reads the
     // Gaussian features of the point it was drawn from.
     const at::Tensor drawn_from = features.repeat_interleave(samples, 1);
+    const bool inference = !statistics && !batch_statistics && !at::GradMode::is_enabled();
+    const RefineProducts products =
+        inference ? refine_products(features, params) : RefineProducts{};
     at::Tensor p = out.coarse;
     for (int64_t i = 0; i < passes; ++i) {
-        at::Tensor h = at::cat({mlp(p, params, "refine.mlp1"), drawn_from}, -1);
-        h = mlp(Pass::with_global(h), params, "refine.mlp2");
+        const at::Tensor own = mlp(p, params, "refine.mlp1");
+        at::Tensor h;
+        if (inference) {
+            // mlp2's first layer, by the parts of its input: the point's own features, the
+            // Gaussian features (the same for the `samples` points of a Gaussian, so one product
+            // per Gaussian) and the global maximum (one per patch).
+            const at::Tensor global =
+                std::get<0>(at::cat({own, drawn_from}, -1).max(1, /*keepdim=*/true));
+            h = conv1x1_weights(own, products.own, {}) + products.drawn +
+                conv1x1_weights(global, products.global, params.at("refine.mlp2.0.bias"));
+            h = conv1x1(at::relu(h), params, "refine.mlp2.1");
+        } else {
+            h = mlp(Pass::with_global(at::cat({own, drawn_from}, -1)), params, "refine.mlp2");
+        }
         h = pass.transformer(h, p, neighbours(p, options_.k), "refine.transformer");
         // The ratio-1 up unit: a transposed convolution of a reduction beside the features, a
         // residual MLP, ReLU.
-        const at::Tensor reduced =
-            mlp(h, params, "refine.up.mlp").matmul(params.at("refine.up.deconv.weight"));
-        const at::Tensor joined = at::cat({reduced, h}, -1);
-        const at::Tensor up =
-            at::relu(conv1x1(at::relu(conv1x1(joined, params, "refine.up.res.conv1")), params,
-                             "refine.up.res.conv2") +
-                     conv1x1(joined, params, "refine.up.res.shortcut"));
+        const at::Tensor reduced = mlp(h, params, "refine.up.mlp");
+        at::Tensor up;
+        if (inference) {
+            // conv1 and the shortcut in one product over [reduction, features], the transposed
+            // convolution folded into their weights.
+            const at::Tensor both =
+                conv1x1_weights(at::cat({reduced, h}, -1), products.up, products.up_bias);
+            const int64_t width = h.size(-1);
+            up = at::relu(
+                conv1x1(at::relu(both.narrow(-1, 0, width)), params, "refine.up.res.conv2") +
+                both.narrow(-1, width, width));
+        } else {
+            const at::Tensor joined =
+                at::cat({reduced.matmul(params.at("refine.up.deconv.weight")), h}, -1);
+            up = at::relu(conv1x1(at::relu(conv1x1(joined, params, "refine.up.res.conv1")), params,
+                                  "refine.up.res.conv2") +
+                          conv1x1(joined, params, "refine.up.res.shortcut"));
+        }
         p = p + at::tanh(mlp(up, params, "refine.regressor"));
     }
     out.refined = p;
+    return out;
+}
+
+PuGaussian::RefineProducts PuGaussian::refine_products(const at::Tensor& features,
+                                                       const ParamMap& params) const {
+    const int64_t cr = options_.refine_channels, cg = options_.gaussian_channels;
+    RefineProducts out;
+    const at::Tensor first = params.at("refine.mlp2.0.weight");  // [cr/2, 2(cr + cg)]
+    out.own = first.narrow(1, 0, cr);
+    out.global = first.narrow(1, cr + cg, cr + cg);
+    out.drawn = conv1x1_weights(features, first.narrow(1, cr, cg), {})
+                    .repeat_interleave(options_.samples, 1);
+    // [conv1; shortcut] (2cr x 2cr) on [deconv(reduction), h] = [reduction, h] with the
+    // transposed convolution D [cr/4, cr] folded in: [W_a Dᵀ, W_b].
+    const at::Tensor stacked = at::cat(
+        {params.at("refine.up.res.conv1.weight"), params.at("refine.up.res.shortcut.weight")});
+    const at::Tensor deconv = params.at("refine.up.deconv.weight");
+    out.up = at::cat({stacked.narrow(1, 0, cr).matmul(deconv.t()), stacked.narrow(1, cr, cr)}, 1);
+    out.up_bias =
+        at::cat({params.at("refine.up.res.conv1.bias"), params.at("refine.up.res.shortcut.bias")});
     return out;
 }
 

@@ -110,6 +110,13 @@ class PuGaussian : public Backbone {
     Stages forward_collecting(const at::Tensor& x, const at::Tensor& epsilon,
                               const ParamMap& params, int64_t passes, bool batch_statistics,
                               ParamMap* statistics) const;
+    /// What the refinement's inference path computes once per patch batch: mlp2's first layer
+    /// split by its input's parts (the Gaussian features' product already repeated per draw),
+    /// the up unit's conv1 and shortcut stacked with the transposed convolution folded in.
+    struct RefineProducts {
+        at::Tensor own, drawn, global, up, up_bias;
+    };
+    RefineProducts refine_products(const at::Tensor& features, const ParamMap& params) const;
     /// upsample() with the draws seeded from `seed`.
     at::Tensor upsample_seeded(const at::Tensor& x, const ParamMap& params, uint64_t seed) const;
 
