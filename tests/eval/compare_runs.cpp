@@ -80,6 +80,30 @@ TEST(CompareRuns, PairsByCaseNameAndCountsTheCasesOnlyOneRunHas) {
     EXPECT_NE(text.find("change -10.00 %"), std::string::npos) << text;
 }
 
+// `eval --benchmark` runs (the published protocol's columns, objects by name) compare too.
+TEST(CompareRuns, BenchmarkRunsCompareOnTheProtocolsColumns) {
+    test::TempDir dir;
+    auto write = [&](const std::string& name, double scale) {
+        std::filesystem::path run = dir.path() / name;
+        std::filesystem::create_directories(run);
+        std::ofstream out(run / kCasesCsvFile);
+        out << "object,n_in,n_out,n_gt,cd_1e3,hd_1e3,hd_legacy_1e3,p2f_1e3,p2f_std_1e3,seconds\n";
+        for (const auto& [object, cd] : {std::pair{"camel", 0.2}, {"star", 0.4}})
+            out << object << ",2048,8192,8192," << cd * scale << ",30,2," << 1.5 * scale
+                << ",1,2\n";
+        return run.string();
+    };
+    const RunComparison c = compare_runs(write("plain", 1.0), write("adapted", 0.9), 200, 1);
+    EXPECT_EQ(c.shared_cases, 2);
+    const MetricComparison* cd = find_metric(c, "cd_1e3");
+    ASSERT_NE(cd, nullptr);
+    EXPECT_FALSE(cd->higher_is_better);
+    EXPECT_NEAR(cd->paired.relative_change, -0.1, 1e-9);
+    EXPECT_DOUBLE_EQ(cd->paired.fraction_improved, 1.0);
+    ASSERT_NE(find_metric(c, "p2f_1e3"), nullptr);
+    EXPECT_EQ(find_metric(c, "cd"), nullptr);
+}
+
 TEST(CompareRuns, MissingRunsAndDisjointRunsAreInputErrors) {
     test::TempDir dir;
     std::string base = write_run(dir, "base", {{"a", 1.0, 40, 0.1}});

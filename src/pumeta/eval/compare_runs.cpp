@@ -46,8 +46,15 @@ RunComparison compare_runs(const std::string& base_dir, const std::string& metho
         throw_input_error(method_dir, "no case in common with {} (different sets or ratios?)",
                           base_dir);
 
-    for (const Metric* metric : {&kCd, &kHd, &kP2f, &kPsnr}) {
-        auto b = base.scores.find(metric->column), m = method.scores.find(metric->column);
+    // The test-set metrics (`eval --cases`), then the published protocol's (`eval --benchmark`,
+    // ×10³, all lower-is-better); a run has one kind or the other.
+    std::vector<std::pair<std::string, bool>> columns;
+    for (const Metric* metric : {&kCd, &kHd, &kP2f, &kPsnr})
+        columns.emplace_back(metric->column, metric->higher_is_better);
+    for (const char* column : {"cd_1e3", "hd_1e3", "hd_legacy_1e3", "p2f_1e3"})
+        columns.emplace_back(column, false);
+    for (const auto& [column, higher_is_better] : columns) {
+        auto b = base.scores.find(column), m = method.scores.find(column);
         if (b == base.scores.end() || m == method.scores.end()) continue;
         std::vector<double> base_values, method_values;
         for (auto [i, j] : pairs) {
@@ -55,8 +62,8 @@ RunComparison compare_runs(const std::string& base_dir, const std::string& metho
             method_values.push_back(m->second[j]);
         }
         MetricComparison mc{
-            metric->column, metric->higher_is_better,
-            compare_paired(base_values, method_values, metric->higher_is_better, resamples, seed)};
+            column, higher_is_better,
+            compare_paired(base_values, method_values, higher_is_better, resamples, seed)};
         if (mc.paired.count > 0) c.metrics.push_back(mc);
     }
     return c;
