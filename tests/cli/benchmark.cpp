@@ -134,19 +134,10 @@ double brute_force_p2f(const at::Tensor& points, const TriangleMesh& mesh) {
 // recomputed here from the saved predictions by brute force: nearest neighbours over all
 // pairs, exact point-to-triangle distances over all faces, P2F in the mesh's own coordinates.
 TEST(CliBenchmark, PublicPuganMeshesScoreAsAnIndependentComputation) {
-    const fs::path shared =
-        fs::path(test::source_dir()) / ".." / "shared" / "benchmarks" / "pugan-test";
-    if (!fs::is_directory(shared / "input_2048")) GTEST_SKIP() << "no " << shared.string();
+    const fs::path shared = test::pugan_benchmark_dir();
+    if (!test::have_pugan_benchmark()) GTEST_SKIP() << "no " << shared.string();
     test::TempDir dir;
-    const fs::path data = dir.path() / "pugan";
-    const std::vector<std::string> names = {"camel", "fandisk", "star"};
-    for (const std::string folder : {"input_2048", "gt_8192", "original_meshes"}) {
-        fs::create_directories(data / folder);
-        for (const std::string& name : names) {
-            const std::string file = name + (folder == "original_meshes" ? ".off" : ".xyz");
-            fs::create_symlink(fs::absolute(shared / folder / file), data / folder / file);
-        }
-    }
+    const fs::path data = test::pugan_benchmark_subset(dir, {"camel", "fandisk", "star"});
     const std::string model = test::source_dir() + "/models/pugcn-x4.pt";
     for (const std::vector<std::string>& method : {std::vector<std::string>{"--method", "midpoint"},
                                                    std::vector<std::string>{"--model", model}}) {

@@ -29,27 +29,32 @@ fs::path pugaussian_weights() {
     return shared_dir() / "weights" / "pugaussian" / "pu_gaussian_pugan_Best.pth";
 }
 
-/// A benchmark folder in the published layout holding only `meshes` of the shared one.
-fs::path benchmark_subset(const test::TempDir& dir, const std::vector<std::string>& meshes) {
-    const fs::path bench = shared_dir() / "benchmarks" / "pugan-test";
-    const fs::path data = dir.path() / "pugan";
-    for (const std::string folder : {"input_2048", "gt_8192", "original_meshes"}) {
-        fs::create_directories(data / folder);
-        for (const std::string& name : meshes) {
-            const std::string file = name + (folder == "original_meshes" ? ".off" : ".xyz");
-            fs::create_symlink(fs::absolute(bench / folder / file), data / folder / file);
-        }
-    }
-    return data;
-}
-
-bool have_benchmark() {
-    return fs::is_directory(shared_dir() / "benchmarks" / "pugan-test" / "input_2048");
-}
-
 test::CommandResult import(const std::string& file, const std::string& out,
                            const std::string& format = "gradpu") {
     return test::run_cli({"import", "--from", format, file, "-o", out});
+}
+
+/// 4x CD (x10^3) per mesh of camel, fandisk and star under the published protocol, from
+/// `pumeta eval --benchmark` of `weights` imported as `format`; empty (with a failure) when a
+/// step fails.
+std::map<std::string, double> three_public_meshes(const fs::path& weights,
+                                                  const std::string& format) {
+    test::TempDir dir;
+    const std::string model = dir.file(format + ".pt");
+    const auto imported = import(weights.string(), model, format);
+    EXPECT_EQ(imported.exit_code, 0) << imported.err;
+    const fs::path data = test::pugan_benchmark_subset(dir, {"camel", "fandisk", "star"});
+    const std::string out = dir.file("eval");
+    const auto r = test::run_cli({"--threads", "1", "eval", "--benchmark", "pugan", "--data",
+                                  data.string(), "--model", model, "--ratio", "4", "-o", out});
+    EXPECT_EQ(r.exit_code, 0) << r.err;
+    std::map<std::string, double> cd;
+    if (imported.exit_code != 0 || r.exit_code != 0) return cd;
+    const auto rows = test::read_csv(out + "/cases.csv");
+    EXPECT_EQ(rows.size(), 4u);
+    EXPECT_EQ(rows.at(0).at(4), "cd_1e3");
+    for (size_t i = 1; i < rows.size(); ++i) cd[rows[i][0]] = std::stod(rows[i][4]);
+    return cd;
 }
 
 TEST(CliImport, AFileThatIsNoTorchArchiveIsAOneLineErrorAndWritesNothing) {
@@ -120,25 +125,14 @@ TEST(CliImport, ImportedGradPuWeightsServeInfoAndUpsample) {
 // Agreement with the original (Grad-PU's own code and these weights, step size 50, CPU,
 // PyTorch 1.13, measured on the public meshes): 4x CD per mesh within 2 %.
 TEST(CliImport, ImportedGradPuScoresThreePublicMeshesAsTheOriginal) {
-    if (!fs::exists(gradpu_weights()) || !have_benchmark())
+    if (!fs::exists(gradpu_weights()) || !test::have_pugan_benchmark())
         GTEST_SKIP() << "no " << shared_dir().string();
-    test::TempDir dir;
-    const std::string model = dir.file("gradpu.pt");
-    ASSERT_EQ(import(gradpu_weights().string(), model).exit_code, 0);
     const std::map<std::string, double> original = {
         {"camel", 0.2086}, {"fandisk", 0.2436}, {"star", 0.3857}};
-    const fs::path data = benchmark_subset(dir, {"camel", "fandisk", "star"});
-    const std::string out = dir.file("eval");
-    const auto r = test::run_cli({"--threads", "1", "eval", "--benchmark", "pugan", "--data",
-                                  data.string(), "--model", model, "--ratio", "4", "-o", out});
-    ASSERT_EQ(r.exit_code, 0) << r.err;
-    const auto rows = test::read_csv(out + "/cases.csv");
-    ASSERT_EQ(rows.size(), 4u);
-    ASSERT_EQ(rows[0][4], "cd_1e3");
-    for (size_t i = 1; i < rows.size(); ++i) {
-        const double expected = original.at(rows[i][0]);
-        EXPECT_NEAR(std::stod(rows[i][4]), expected, 0.02 * expected) << rows[i][0];
-    }
+    const std::map<std::string, double> cd = three_public_meshes(gradpu_weights(), "gradpu");
+    ASSERT_EQ(cd.size(), original.size());
+    for (const auto& [name, expected] : original)
+        EXPECT_NEAR(cd.at(name), expected, 0.02 * expected) << name;
 }
 
 TEST(CliImport, PuGaussianWeightsImportAsPuGaussianOnly) {
@@ -198,26 +192,16 @@ TEST(CliImport, ImportedPuGaussianWeightsServeInfoAndUpsample) {
 // the draws make each mesh's CD vary by up to 10 % from seed to seed, so each of pumeta's
 // must fall within the original's range widened by 10 %.
 TEST(CliImport, ImportedPuGaussianScoresThreePublicMeshesAsTheOriginal) {
-    if (!fs::exists(pugaussian_weights()) || !have_benchmark())
+    if (!fs::exists(pugaussian_weights()) || !test::have_pugan_benchmark())
         GTEST_SKIP() << "no " << shared_dir().string();
-    test::TempDir dir;
-    const std::string model = dir.file("pugaussian.pt");
-    ASSERT_EQ(import(pugaussian_weights().string(), model, "pugaussian").exit_code, 0);
     const std::map<std::string, std::pair<double, double>> original = {
         {"camel", {0.134, 0.137}}, {"fandisk", {0.220, 0.236}}, {"star", {0.368, 0.408}}};
-    const fs::path data = benchmark_subset(dir, {"camel", "fandisk", "star"});
-    const std::string out = dir.file("eval");
-    const auto r = test::run_cli({"--threads", "1", "eval", "--benchmark", "pugan", "--data",
-                                  data.string(), "--model", model, "--ratio", "4", "-o", out});
-    ASSERT_EQ(r.exit_code, 0) << r.err;
-    const auto rows = test::read_csv(out + "/cases.csv");
-    ASSERT_EQ(rows.size(), 4u);
-    ASSERT_EQ(rows[0][4], "cd_1e3");
-    for (size_t i = 1; i < rows.size(); ++i) {
-        const auto [low, high] = original.at(rows[i][0]);
-        const double cd = std::stod(rows[i][4]);
-        EXPECT_GT(cd, 0.9 * low) << rows[i][0];
-        EXPECT_LT(cd, 1.1 * high) << rows[i][0];
+    const std::map<std::string, double> cd =
+        three_public_meshes(pugaussian_weights(), "pugaussian");
+    ASSERT_EQ(cd.size(), original.size());
+    for (const auto& [name, range] : original) {
+        EXPECT_GT(cd.at(name), 0.9 * range.first) << name;
+        EXPECT_LT(cd.at(name), 1.1 * range.second) << name;
     }
 }
 

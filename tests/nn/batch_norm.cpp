@@ -7,6 +7,7 @@
 #include <torch/csrc/autograd/autograd.h>
 
 #include "pumeta/core/error.h"
+#include "pumeta/nn/conv.h"
 
 namespace pumeta {
 
@@ -77,6 +78,22 @@ TEST(BatchNorm, RunningStatisticsMatchATenInference) {
     for (const auto& [name, b] : f.buffers) float_buffers[name] = b.to(at::kFloat);
     at::Tensor converted = batch_norm_running_stats(f.x, f.params, float_buffers, "bn", kEps);
     EXPECT_TRUE(at::allclose(converted, ours, 1e-6, 1e-6));
+}
+
+// A convolution and the batch norm after it, folded into one convolution, give the same output.
+TEST(BatchNorm, FoldingIntoTheConvolutionBeforeItKeepsTheOutput) {
+    Fixture f = make_fixture(2);
+    const int64_t channels = f.x.size(-1);
+    at::Generator gen = at::detail::createCPUGenerator(5);
+    const at::Tensor input = at::randn({4, 6, 5}, gen, at::TensorOptions().dtype(at::kDouble));
+    ParamMap params = f.params;
+    params["conv.weight"] = at::randn({channels, 5}, gen, at::TensorOptions().dtype(at::kDouble));
+    params["conv.bias"] = at::randn({channels}, gen, at::TensorOptions().dtype(at::kDouble));
+    const at::Tensor reference =
+        batch_norm_running_stats(conv1x1(input, params, "conv"), params, f.buffers, "bn", kEps);
+    const FoldedConv folded = fold_batch_norm(params, f.buffers, "conv", "bn", kEps, at::kDouble);
+    EXPECT_TRUE(
+        at::allclose(conv1x1_weights(input, folded.weight, folded.bias), reference, 1e-10, 1e-10));
 }
 
 TEST(BatchNorm, RunningUpdateIsTheMomentumAverageWithUnbiasedVariance) {

@@ -135,6 +135,25 @@ at::Tensor sheet(int64_t batch, int64_t n, uint64_t seed, at::ScalarType type) {
 
 std::string source_dir() { return PUMETA_SOURCE_DIR; }
 
+fs::path pugan_benchmark_dir() {
+    return fs::path(source_dir()) / ".." / "shared" / "benchmarks" / "pugan-test";
+}
+
+bool have_pugan_benchmark() { return fs::is_directory(pugan_benchmark_dir() / "input_2048"); }
+
+fs::path pugan_benchmark_subset(const TempDir& dir, const std::vector<std::string>& meshes) {
+    const fs::path data = dir.path() / "pugan";
+    for (const std::string folder : {"input_2048", "gt_8192", "original_meshes"}) {
+        fs::create_directories(data / folder);
+        for (const std::string& name : meshes) {
+            const std::string file = name + (folder == "original_meshes" ? ".off" : ".xyz");
+            fs::create_symlink(fs::absolute(pugan_benchmark_dir() / folder / file),
+                               data / folder / file);
+        }
+    }
+    return data;
+}
+
 void make_raw_tree(const fs::path& raw) {
     fs::path catalogue = raw / "furniture" / "Mini";
     std::vector<std::tuple<std::string, std::string, std::string>> entries = {

@@ -102,6 +102,16 @@ at::Tensor sheet(int64_t batch, int64_t n, uint64_t seed, at::ScalarType type = 
 /// Root of the source tree (for fixtures under tests/data).
 std::string source_dir();
 
+/// The public PU-GAN test meshes beside the source tree (../shared/benchmarks/pugan-test), and
+/// whether they are there (tests that need them skip otherwise).
+std::filesystem::path pugan_benchmark_dir();
+bool have_pugan_benchmark();
+
+/// A folder under `dir` in the published layout (input_2048/, gt_8192/, original_meshes/)
+/// holding symbolic links to `meshes` of pugan_benchmark_dir() only.
+std::filesystem::path pugan_benchmark_subset(const TempDir& dir,
+                                             const std::vector<std::string>& meshes);
+
 /// A raw-data tree shaped like get-data.sh's under `raw`: a furniture catalogue with a chair,
 /// a table, a lamp and a human figure, CGAL CAD parts, a scanned statue and an aerial scan
 /// (all meshes procedural, so the tree is made in milliseconds).

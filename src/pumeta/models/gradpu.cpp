@@ -242,13 +242,7 @@ at::Tensor midpoint_interpolate(const at::Tensor& x, int64_t ratio) {
     // repeats some.
     if (n * k < ratio * n) mids = mids.repeat({1, (ratio + k - 1) / k, 1});
     const at::Tensor picks = farthest_point_sampling_batched(mids.contiguous(), ratio * n);
-    return at::stack(
-        [&] {
-            std::vector<at::Tensor> rows;
-            for (int64_t b = 0; b < batch; ++b) rows.push_back(mids[b].index_select(0, picks[b]));
-            return rows;
-        }(),
-        0);
+    return at::gather(mids, 1, picks.unsqueeze(-1).expand({-1, -1, 3}));
 }
 
 at::Tensor GradPu::upsample(const at::Tensor& x, const ParamMap& params) const {

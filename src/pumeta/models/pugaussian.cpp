@@ -181,14 +181,9 @@ struct Pass {
                                 ? batch_norm_batch_stats(y, params, norm, kNormEps)
                                 : batch_norm_running_stats(y, params, buffers, norm, kNormEps));
         }
-        const auto as_x = [&](const at::Tensor& t) { return t.to(x.scalar_type()); };
-        const at::Tensor scale = params.at(norm + ".gamma") *
-                                 (as_x(buffers.at(norm + ".running_var")) + kNormEps).rsqrt();
-        const at::Tensor weight = params.at(prefix + ".weight") * scale.unsqueeze(1);
-        const at::Tensor bias =
-            (params.at(prefix + ".bias") - as_x(buffers.at(norm + ".running_mean"))) * scale +
-            params.at(norm + ".beta");
-        return at::relu(conv1x1_weights(x, weight, bias));
+        const FoldedConv folded =
+            fold_batch_norm(params, buffers, prefix, norm, kNormEps, x.scalar_type());
+        return at::relu(conv1x1_weights(x, folded.weight, folded.bias));
     }
 
     /// The point transformer on features x [B,N,C] at positions pos [B,N,3] with the
@@ -228,15 +223,11 @@ struct Pass {
         const at::Tensor points = pos.reshape({batch * n, 3});
         const at::Tensor rows =
             (idx + (at::arange(batch, idx.options()) * n).view({batch, 1, 1})).reshape({-1, k});
+        // The batch-normed layers folded, their weights laid out [in, out] for addmm.
         auto folded = [&](const std::string& layer) {
-            const std::string norm = layer + ".bn";
-            const auto as_x = [&](const at::Tensor& t) { return t.to(x.scalar_type()); };
-            const at::Tensor scale = params.at(norm + ".gamma") *
-                                     (as_x(buffers.at(norm + ".running_var")) + kNormEps).rsqrt();
-            return std::make_pair(
-                (params.at(layer + ".weight") * scale.unsqueeze(1)).t().contiguous(),
-                (params.at(layer + ".bias") - as_x(buffers.at(norm + ".running_mean"))) * scale +
-                    params.at(norm + ".beta"));
+            const FoldedConv f =
+                fold_batch_norm(params, buffers, layer, layer + ".bn", kNormEps, x.scalar_type());
+            return std::make_pair(f.weight.t().contiguous(), f.bias);
         };
         const auto [pos0_w, pos0_b] = folded(prefix + ".pos0");
         const auto [attn0_w, attn0_b] = folded(prefix + ".attn0");

@@ -69,6 +69,17 @@ at::Tensor batch_norm_running_stats(const at::Tensor& x, const ParamMap& params,
     return normalize(x, mean, var, params, prefix, eps);
 }
 
+FoldedConv fold_batch_norm(const ParamMap& params, const ParamMap& buffers, const std::string& conv,
+                           const std::string& norm, double eps, at::ScalarType type) {
+    const at::Tensor weight = params.at(conv + ".weight");
+    const int64_t channels = weight.size(0);
+    const at::Tensor mean = channel_vector(buffers, norm + ".running_mean", channels).to(type);
+    const at::Tensor var = channel_vector(buffers, norm + ".running_var", channels).to(type);
+    const at::Tensor scale = params.at(norm + ".gamma") * (var + eps).rsqrt();
+    return {weight * scale.unsqueeze(1),
+            (params.at(conv + ".bias") - mean) * scale + params.at(norm + ".beta")};
+}
+
 void update_running_stats(const at::Tensor& x, ParamMap& buffers, const std::string& prefix,
                           double momentum) {
     if (!(momentum >= 0 && momentum <= 1))

@@ -29,6 +29,17 @@ at::Tensor batch_norm_batch_stats(const at::Tensor& x, const ParamMap& params,
 at::Tensor batch_norm_running_stats(const at::Tensor& x, const ParamMap& params,
                                     const ParamMap& buffers, const std::string& prefix, double eps);
 
+/// The 1x1 convolution `conv` (`conv`.weight [Cout,Cin], `conv`.bias) followed by the batch
+/// norm `norm` on its running statistics, as one convolution for inference:
+/// weight·s and (bias − mean)·s + beta with s = gamma / sqrt(var + eps), in `type` (the buffers
+/// converted). conv1x1_weights(x, folded.weight, folded.bias) equals
+/// batch_norm_running_stats(conv1x1(x, params, conv), ...) up to rounding.
+struct FoldedConv {
+    at::Tensor weight, bias;
+};
+FoldedConv fold_batch_norm(const ParamMap& params, const ParamMap& buffers, const std::string& conv,
+                           const std::string& norm, double eps, at::ScalarType type);
+
 /// running ← (1 − momentum) · running + momentum · batch, for the mean and the unbiased
 /// variance of x [..., C] (as TensorFlow's fused batch norm and PyTorch do). No gradient.
 /// InputError unless 0 <= momentum <= 1 and x has at least two rows.
