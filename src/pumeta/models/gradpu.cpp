@@ -20,6 +20,7 @@
 #include "pumeta/nn/batch_norm.h"
 #include "pumeta/nn/conv.h"
 #include "pumeta/nn/init.h"
+#include "pumeta/nn/point_conv.h"
 
 namespace pumeta {
 
@@ -143,12 +144,12 @@ nlohmann::json GradPu::config_for_ratio(int64_t ratio) const {
 }
 
 GradPu::Features GradPu::extract(const at::Tensor& p, const ParamMap& params, bool batch_statistics,
-                                 ParamMap* statistics) const {
+                                 BatchMomentsMap* statistics) const {
     // conv -> batch norm -> ReLU; the input of each batch norm is kept in `statistics` when
     // asked for (update_buffers).
     auto unit = [&](const at::Tensor& x, const std::string& prefix) {
         at::Tensor y = conv1x1(x, params, prefix);
-        if (statistics) (*statistics)[prefix + ".bn"] = y;
+        if (statistics) (*statistics)[prefix + ".bn"] = batch_moments(y);
         y = batch_statistics
                 ? batch_norm_batch_stats(y, params, prefix + ".bn", kNormEps)
                 : batch_norm_running_stats(y, params, buffers_, prefix + ".bn", kNormEps);
@@ -157,26 +158,37 @@ GradPu::Features GradPu::extract(const at::Tensor& p, const ParamMap& params, bo
     Features out;
     out.points = p;
     const at::Tensor idx = nearest(p, p, std::min(options_.k, p.size(1)));  // [B,M,k]
-    const at::Tensor delta = gather_rows(p, idx) - p.unsqueeze(2);          // [B,M,k,3]
+    // Train mode and the running statistics' update run each Point3DConv from small moments
+    // of its edges (nn/point_conv.h); with running statistics the edges are composed directly.
+    PointConvGraph graph;
+    at::Tensor delta;
+    if (batch_statistics)
+        graph = point_conv_graph(p, idx);
+    else
+        delta = gather_rows(p, idx) - p.unsqueeze(2);  // [B,M,k,3]
     at::Tensor features = unit(p, "extractor.init");
     out.local.push_back(features);
     for (int64_t b = 0; b < options_.blocks; ++b) {
         at::Tensor dense = features;
         for (int64_t l = 0; l < options_.layers; ++l) {
             const std::string prefix = layer_prefix(b, l);
-            at::Tensor bottle = unit(dense, prefix + ".bottle");
             // Point3DConv: the 1x1 convolution of the neighbours' features runs per point
-            // before the gather (it is linear); its batch norm sees every edge, as the
-            // original's on the gathered map.
-            at::Tensor neighbours = gather_rows(conv1x1(bottle, params, prefix + ".feats"), idx);
-            if (statistics) (*statistics)[prefix + ".feats.bn"] = neighbours;
-            neighbours = at::relu(
-                batch_statistics
-                    ? batch_norm_batch_stats(neighbours, params, prefix + ".feats.bn", kNormEps)
-                    : batch_norm_running_stats(neighbours, params, buffers_, prefix + ".feats.bn",
-                                               kNormEps));
-            at::Tensor edges = unit(unit(delta, prefix + ".delta") * neighbours, prefix + ".post");
-            dense = at::cat({dense, edges.sum(2)}, -1);
+            // before the gather (it is linear).
+            const at::Tensor feats = conv1x1(unit(dense, prefix + ".bottle"), params,
+                                             prefix + ".feats");
+            at::Tensor edges;
+            if (batch_statistics) {
+                edges = point_conv_batch_stats(feats, graph, params, prefix, kNormEps, statistics);
+            } else {
+                // With running statistics its batch norm is one affine map per channel: it
+                // and the ReLU run per point too.
+                const at::Tensor neighbours = gather_rows(
+                    at::relu(batch_norm_running_stats(feats, params, buffers_,
+                                                      prefix + ".feats.bn", kNormEps)),
+                    idx);
+                edges = unit(unit(delta, prefix + ".delta") * neighbours, prefix + ".post").sum(2);
+            }
+            dense = at::cat({dense, edges}, -1);
         }
         features = unit(dense, transition_prefix(b));
         out.local.push_back(features);
@@ -328,11 +340,11 @@ at::Tensor GradPu::downsample(const at::Tensor& dense, uint64_t seed) const {
 void GradPu::update_buffers(const at::Tensor& input, const ParamMap& params) {
     at::NoGradGuard no_grad;
     check_batched_points(input, "gradpu update_buffers");
-    ParamMap statistics;
+    BatchMomentsMap statistics;
     extract(midpoint_interpolate(input, options_.ratio), params, /*batch_statistics=*/true,
             &statistics);
-    for (const auto& [prefix, x] : statistics)
-        update_running_stats(x, buffers_, prefix, kNormMomentum);
+    for (const auto& [prefix, moments] : statistics)
+        update_running_stats(moments, buffers_, prefix, kNormMomentum);
 }
 
 std::unique_ptr<Backbone> make_gradpu(const nlohmann::json& config) {

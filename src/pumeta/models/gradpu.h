@@ -13,6 +13,7 @@
 #include <string>
 
 #include "pumeta/models/backbone.h"
+#include "pumeta/nn/batch_norm.h"
 
 namespace pumeta {
 
@@ -108,7 +109,7 @@ class GradPu : public Backbone {
   private:
     struct Features;
     Features extract(const at::Tensor& p, const ParamMap& params, bool batch_statistics,
-                     ParamMap* statistics = nullptr) const;
+                     BatchMomentsMap* statistics = nullptr) const;
     at::Tensor regress(const Features& features, const at::Tensor& q, const ParamMap& params) const;
     /// Patches p [B,M,3] after the descent steps, each point moving by `point_step` times the
     /// gradient of its clamped predicted distance.

@@ -80,23 +80,36 @@ FoldedConv fold_batch_norm(const ParamMap& params, const ParamMap& buffers, cons
             (params.at(conv + ".bias") - mean) * scale + params.at(norm + ".beta")};
 }
 
+BatchMoments batch_moments(const at::Tensor& x) {
+    at::NoGradGuard no_grad;
+    at::Tensor rows = channel_rows(x, "batch_moments").detach();
+    auto [var, mean] = at::var_mean(rows, 0, /*unbiased=*/false);
+    return {mean, var, rows.size(0)};
+}
+
 void update_running_stats(const at::Tensor& x, ParamMap& buffers, const std::string& prefix,
+                          double momentum) {
+    channel_rows(x, prefix);
+    update_running_stats(batch_moments(x), buffers, prefix, momentum);
+}
+
+void update_running_stats(const BatchMoments& batch, ParamMap& buffers, const std::string& prefix,
                           double momentum) {
     if (!(momentum >= 0 && momentum <= 1))
         throw_input_error(prefix, "batch-norm momentum must be in [0, 1], found {}", momentum);
-    at::Tensor rows = channel_rows(x, prefix).detach();
-    if (rows.size(0) < 2)
+    if (batch.rows < 2)
         throw_input_error(prefix, "running statistics need at least 2 rows, found {}",
-                          rows.size(0));
+                          batch.rows);
     at::NoGradGuard no_grad;
-    const int64_t channels = rows.size(1);
+    const int64_t channels = batch.mean.numel();
     channel_vector(buffers, prefix + ".running_mean", channels);  // named errors first
     channel_vector(buffers, prefix + ".running_var", channels);
     at::Tensor& mean = buffers.at(prefix + ".running_mean");
     at::Tensor& var = buffers.at(prefix + ".running_var");
+    const double unbiased = double(batch.rows) / double(batch.rows - 1);
     // New tensors rather than in-place updates: copies of the map stay snapshots.
-    mean = (1 - momentum) * mean + momentum * rows.mean(0).to(mean.options());
-    var = (1 - momentum) * var + momentum * rows.var(0, /*unbiased=*/true).to(var.options());
+    mean = (1 - momentum) * mean + momentum * batch.mean.detach().to(mean.options());
+    var = (1 - momentum) * var + momentum * (batch.var.detach() * unbiased).to(var.options());
 }
 
 }  // namespace pumeta

@@ -6,6 +6,7 @@
 #include <ATen/core/Tensor.h>
 
 #include <cstdint>
+#include <map>
 #include <string>
 
 #include "pumeta/nn/parameters.h"
@@ -44,6 +45,22 @@ FoldedConv fold_batch_norm(const ParamMap& params, const ParamMap& buffers, cons
 /// variance of x [..., C] (as TensorFlow's fused batch norm and PyTorch do). No gradient.
 /// InputError unless 0 <= momentum <= 1 and x has at least two rows.
 void update_running_stats(const at::Tensor& x, ParamMap& buffers, const std::string& prefix,
+                          double momentum);
+
+/// A batch's per-channel statistics: mean and biased variance [C] over `rows` rows, for
+/// layers that know them without the rows themselves (nn/point_conv.h).
+struct BatchMoments {
+    at::Tensor mean;
+    at::Tensor var;
+    int64_t rows = 0;
+};
+using BatchMomentsMap = std::map<std::string, BatchMoments>;
+
+/// The moments of x [..., C].
+BatchMoments batch_moments(const at::Tensor& x);
+
+/// update_running_stats from the moments (the variance made unbiased with rows / (rows − 1)).
+void update_running_stats(const BatchMoments& batch, ParamMap& buffers, const std::string& prefix,
                           double momentum);
 
 }  // namespace pumeta
