@@ -362,7 +362,7 @@ nlohmann::json gradpu_small_config() {
             {"patch_size", 16},
             {"refine_patch_size", 64},
             {"steps", 3},
-            {"step_size", 1},
+            {"step_size", 0.05},
             {"step_rule", "per_point"},
             {"downsampler", "random"},
             {"seed", 3}};

@@ -127,7 +127,8 @@ at::Tensor midpoint_interpolate(const at::Tensor& x, int64_t ratio);
 std::unique_ptr<Backbone> make_gradpu(const nlohmann::json& config);
 
 /// Grad-PU's smallest useful config (width 4, one block of two layers, k 4, 16-point
-/// patches), registered for the backbone conformance suite.
+/// patches, three descent steps of 0.05 per point, about the original's 50 / 1,024),
+/// registered for the backbone conformance suite.
 nlohmann::json gradpu_small_config();
 
 }  // namespace pumeta
