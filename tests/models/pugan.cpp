@@ -164,6 +164,25 @@ TEST(PuGan, TrainingTermsAddTheRegulariserAndTheAdversarialTerm) {
     EXPECT_EQ(pugan_discriminate(y, d).sizes(), (std::vector<int64_t>{2}));
 }
 
+// A reconstruction-only run (adversarial_weight 0) has no discriminator to train and no
+// adversarial term; the rest of its training terms are those of the full loss.
+TEST(PuGan, WithoutTheAdversarialTermThereIsNoDiscriminator) {
+    nlohmann::json config = small();
+    config["adversarial_weight"] = 0.0;
+    PuGan plain = make(config);
+    PuGan full = make(small());
+    EXPECT_TRUE(plain.make_auxiliary(7).empty());
+    at::Tensor y = test::sheet(2, 64, 8);
+    at::Tensor x = plain.downsample(y, 9);
+    LossTerms terms = plain.training_terms(x, y, plain.parameters(), {}, 0);
+    LossTerms reference = full.training_terms(x, y, full.parameters(), full.make_auxiliary(7), 0);
+    ASSERT_EQ(terms.size(), reference.size() - 1);
+    for (size_t i = 0; i < terms.size(); ++i) {
+        EXPECT_EQ(terms[i].first, reference[i].first);
+        EXPECT_TRUE(at::equal(terms[i].second, reference[i].second)) << terms[i].first;
+    }
+}
+
 TEST(PuGan, DiscriminatorLossIsLsganAndReachesOnlyTheDiscriminator) {
     PuGan model = make(small());
     ParamMap d = model.make_auxiliary(10);

@@ -247,6 +247,8 @@ at::Tensor PuGan::downsample(const at::Tensor& dense, uint64_t seed) const {
 }
 
 ParamMap PuGan::make_auxiliary(uint64_t seed) const {
+    // Without the adversarial term no discriminator is trained (reconstruction-only runs).
+    if (options_.adversarial_weight == 0) return {};
     std::mt19937_64 rng(seed);
     const int64_t s = options_.discriminator_channels;
     ParamMap d;
@@ -290,8 +292,10 @@ LossTerms PuGan::training_terms(const at::Tensor& input, const at::Tensor& targe
         squares = squares.defined() ? squares + sq : sq;
     }
     terms.emplace_back("regularization", 0.5 * options_.regularization * squares);
-    terms.emplace_back("adversarial", options_.adversarial_weight *
-                                          (pugan_discriminate(pred, auxiliary) - 1).pow(2).mean());
+    if (options_.adversarial_weight > 0)
+        terms.emplace_back("adversarial",
+                           options_.adversarial_weight *
+                               (pugan_discriminate(pred, auxiliary) - 1).pow(2).mean());
     return terms;
 }
 

@@ -110,11 +110,12 @@ class PuGan : public Backbone {
     /// downsample_points(dense, M / r, options().downsampler, seed).
     at::Tensor downsample(const at::Tensor& dense, uint64_t seed) const override;
 
-    /// The discriminator's parameters ("d.*"), Xavier-uniform from `seed`.
+    /// The discriminator's parameters ("d.*"), Xavier-uniform from `seed`; none when
+    /// adversarial_weight is 0.
     ParamMap make_auxiliary(uint64_t seed) const override;
     /// loss_terms, then "regularization" (regularization · ½‖w‖² over every generator weight
-    /// and bias except the last layer's, not the attention scales γ) and "adversarial"
-    /// (adversarial_weight · mean_b (D(pred) − 1)²).
+    /// and bias except the last layer's, not the attention scales γ) and, unless
+    /// adversarial_weight is 0, "adversarial" (adversarial_weight · mean_b (D(pred) − 1)²).
     LossTerms training_terms(const at::Tensor& input, const at::Tensor& target,
                              const ParamMap& params, const ParamMap& auxiliary,
                              int64_t step) const override;
