@@ -31,7 +31,11 @@ int main(int argc, char** argv) {
         "print the version, the commit, LibTorch's version and the BLAS in use, and exit");
     int threads = 0;
     std::string log_level = "info";
-    app.add_option("--threads", threads, "CPU threads (default: all cores)")
+    app.add_option("--threads", threads,
+                   "CPU threads (default: all cores): training, metrics and the geometry of "
+                   "upsampling (patches, kNN, FPS) use them all; upsampling's networks and "
+                   "test-time adaptation run on one, so the output has the same bytes on any "
+                   "count")
         ->check(pumeta::cli::integer_in(1, 1024));
     app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off")
         ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "off"}));
