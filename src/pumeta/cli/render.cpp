@@ -56,8 +56,8 @@ void add_render_command(CLI::App& app) {
             std::vector<at::Tensor> distances;
             for (const at::Tensor& cloud : clouds)
                 distances.push_back(knn(reference, cloud, 1).sq_distances.squeeze(1).sqrt());
-            colors = error_colors(distances);
             scale = error_scale(distances);
+            colors = error_colors(distances, scale);
         }
         // Under an error picture, its scale: the colour bar in the files' own units.
         auto finish = [&](const Image& image) {

@@ -379,8 +379,10 @@ double error_scale(const std::vector<at::Tensor>& distances) {
 }
 
 std::vector<at::Tensor> error_colors(const std::vector<at::Tensor>& distances) {
-    if (distances.empty()) return {};
-    const double hi = error_scale(distances);
+    return error_colors(distances, error_scale(distances));
+}
+
+std::vector<at::Tensor> error_colors(const std::vector<at::Tensor>& distances, double hi) {
     std::vector<at::Tensor> colors;
     for (const at::Tensor& d : distances) colors.push_back(colormap(d, 0, hi));
     return colors;

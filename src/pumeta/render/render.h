@@ -117,6 +117,8 @@ at::Tensor colormap(const at::Tensor& values);
 /// together (yellow), so that clouds side by side compare and a few outliers do not wash out
 /// the rest.
 std::vector<at::Tensor> error_colors(const std::vector<at::Tensor>& distances);
+/// The same on a scale from 0 to `hi` already computed (error_scale).
+std::vector<at::Tensor> error_colors(const std::vector<at::Tensor>& distances, double hi);
 
 /// The top of error_colors' scale: the 95th percentile of all distances together (0 for none).
 double error_scale(const std::vector<at::Tensor>& distances);
