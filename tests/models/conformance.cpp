@@ -22,9 +22,9 @@
 #include "pumeta/inference/upsample.h"
 #include "pumeta/meta/maml.h"
 #include "pumeta/metrics/metrics.h"
-#include "pumeta/nn/adam.h"
 #include "pumeta/models/backbone.h"
 #include "pumeta/models/checkpoint.h"
+#include "pumeta/nn/adam.h"
 #include "pumeta/nn/gradients.h"
 #include "support/test_util.h"
 
@@ -474,8 +474,8 @@ TEST_P(Conformance, LearnsToFitOneFixedBatchWellBelowTheInputsChamferDistance) {
     Adam adam(model->parameters(), adam_options);
     for (int64_t step = 0; step < kLearnSteps; ++step) {
         model->update_buffers(x, model->parameters());
-        adam.step(used_gradients(model->loss(x, y, model->parameters(), step),
-                                 model->parameters()));
+        adam.step(
+            used_gradients(model->loss(x, y, model->parameters(), step), model->parameters()));
     }
     const double loss_after = own_loss();
     at::NoGradGuard no_grad;

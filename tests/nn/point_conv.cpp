@@ -64,8 +64,7 @@ at::Tensor direct(const Layer& layer) {
         return at::relu(batch_norm_batch_stats(conv1x1(x, layer.params, prefix), layer.params,
                                                prefix + ".bn", kEps));
     };
-    const at::Tensor delta =
-        gather_neighbors(layer.points, layer.idx) - layer.points.unsqueeze(2);
+    const at::Tensor delta = gather_neighbors(layer.points, layer.idx) - layer.points.unsqueeze(2);
     const at::Tensor neighbours = at::relu(batch_norm_batch_stats(
         gather_neighbors(layer.features, layer.idx), layer.params, "l.feats.bn", kEps));
     return unit(unit(delta, "l.delta") * neighbours, "l.post").sum(2);
@@ -126,17 +125,16 @@ TEST(PointConv, ValuesAndGradientsEqualTheDirectComposition) {
 TEST(PointConv, ReportedMomentsAreThoseOfEachBatchNormsEdgeInput) {
     const Layer layer = make_layer(2, 20, 4, 5, at::kDouble, 7);
     BatchMomentsMap moments;
-    point_conv_batch_stats(layer.features, point_conv_graph(layer.points, layer.idx),
-                           layer.params, "l", kEps, &moments);
-    const at::Tensor delta =
-        gather_neighbors(layer.points, layer.idx) - layer.points.unsqueeze(2);
+    point_conv_batch_stats(layer.features, point_conv_graph(layer.points, layer.idx), layer.params,
+                           "l", kEps, &moments);
+    const at::Tensor delta = gather_neighbors(layer.points, layer.idx) - layer.points.unsqueeze(2);
     const at::Tensor feats_in = gather_neighbors(layer.features, layer.idx);
     const at::Tensor delta_in = conv1x1(delta, layer.params, "l.delta");
     auto unit = [&](const at::Tensor& x, const std::string& norm) {
         return at::relu(batch_norm_batch_stats(x, layer.params, norm, kEps));
     };
-    const at::Tensor post_in =
-        conv1x1(unit(delta_in, "l.delta.bn") * unit(feats_in, "l.feats.bn"), layer.params, "l.post");
+    const at::Tensor post_in = conv1x1(unit(delta_in, "l.delta.bn") * unit(feats_in, "l.feats.bn"),
+                                       layer.params, "l.post");
     const std::vector<std::pair<std::string, at::Tensor>> expected = {
         {"l.feats.bn", feats_in}, {"l.delta.bn", delta_in}, {"l.post.bn", post_in}};
     ASSERT_EQ(moments.size(), expected.size());
@@ -166,9 +164,9 @@ TEST(PointConv, Float32AtATrainingSizedBatchMatchesTheDirectCompositionInDouble)
 TEST(PointConv, MismatchedShapesAreNamedErrors) {
     const Layer layer = make_layer(1, 10, 3, 4, at::kFloat, 6);
     const PointConvGraph graph = point_conv_graph(layer.points, layer.idx);
-    EXPECT_THROW(point_conv_batch_stats(layer.features.slice(1, 0, 9), graph, layer.params, "l",
-                                        kEps),
-                 InputError);
+    EXPECT_THROW(
+        point_conv_batch_stats(layer.features.slice(1, 0, 9), graph, layer.params, "l", kEps),
+        InputError);
     ParamMap wrong = layer.params;
     wrong["l.delta.weight"] = at::zeros({4, 2});
     EXPECT_THROW(point_conv_batch_stats(layer.features, graph, wrong, "l", kEps), InputError);

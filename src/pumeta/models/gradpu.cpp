@@ -174,18 +174,18 @@ GradPu::Features GradPu::extract(const at::Tensor& p, const ParamMap& params, bo
             const std::string prefix = layer_prefix(b, l);
             // Point3DConv: the 1x1 convolution of the neighbours' features runs per point
             // before the gather (it is linear).
-            const at::Tensor feats = conv1x1(unit(dense, prefix + ".bottle"), params,
-                                             prefix + ".feats");
+            const at::Tensor feats =
+                conv1x1(unit(dense, prefix + ".bottle"), params, prefix + ".feats");
             at::Tensor edges;
             if (batch_statistics) {
                 edges = point_conv_batch_stats(feats, graph, params, prefix, kNormEps, statistics);
             } else {
                 // With running statistics its batch norm is one affine map per channel: it
                 // and the ReLU run per point too.
-                const at::Tensor neighbours = gather_rows(
-                    at::relu(batch_norm_running_stats(feats, params, buffers_,
-                                                      prefix + ".feats.bn", kNormEps)),
-                    idx);
+                const at::Tensor neighbours =
+                    gather_rows(at::relu(batch_norm_running_stats(feats, params, buffers_,
+                                                                  prefix + ".feats.bn", kNormEps)),
+                                idx);
                 edges = unit(unit(delta, prefix + ".delta") * neighbours, prefix + ".post").sum(2);
             }
             dense = at::cat({dense, edges}, -1);

@@ -293,9 +293,9 @@ LossTerms PuGan::training_terms(const at::Tensor& input, const at::Tensor& targe
     }
     terms.emplace_back("regularization", 0.5 * options_.regularization * squares);
     if (options_.adversarial_weight > 0)
-        terms.emplace_back("adversarial",
-                           options_.adversarial_weight *
-                               (pugan_discriminate(pred, auxiliary) - 1).pow(2).mean());
+        terms.emplace_back(
+            "adversarial",
+            options_.adversarial_weight * (pugan_discriminate(pred, auxiliary) - 1).pow(2).mean());
     return terms;
 }
 

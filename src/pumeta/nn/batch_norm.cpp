@@ -98,8 +98,7 @@ void update_running_stats(const BatchMoments& batch, ParamMap& buffers, const st
     if (!(momentum >= 0 && momentum <= 1))
         throw_input_error(prefix, "batch-norm momentum must be in [0, 1], found {}", momentum);
     if (batch.rows < 2)
-        throw_input_error(prefix, "running statistics need at least 2 rows, found {}",
-                          batch.rows);
+        throw_input_error(prefix, "running statistics need at least 2 rows, found {}", batch.rows);
     at::NoGradGuard no_grad;
     const int64_t channels = batch.mean.numel();
     channel_vector(buffers, prefix + ".running_mean", channels);  // named errors first

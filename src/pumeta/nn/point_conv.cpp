@@ -28,20 +28,23 @@ PointConvGraph point_conv_graph(const at::Tensor& points, const at::Tensor& idx)
     check_batched_points(points, "point_conv_graph points");
     if (idx.dim() != 3 || idx.size(0) != points.size(0) || idx.size(1) != points.size(1) ||
         idx.scalar_type() != at::kLong)
-        throw_input_error("point_conv_graph", "indices {} do not fit points {}",
-                          shape_string(idx), shape_string(points));
+        throw_input_error("point_conv_graph", "indices {} do not fit points {}", shape_string(idx),
+                          shape_string(points));
     const int64_t batch = points.size(0), n = points.size(1), edges = idx.numel();
     PointConvGraph graph;
     graph.idx = idx;
-    const at::Tensor offsets = (gather_neighbors(points, idx) - points.unsqueeze(2)).reshape({-1, 3});
+    const at::Tensor offsets =
+        (gather_neighbors(points, idx) - points.unsqueeze(2)).reshape({-1, 3});
     graph.offset_mean = offsets.mean(0);
     graph.centred_offsets = offsets - graph.offset_mean;
     graph.offset_covariance = graph.centred_offsets.t().mm(graph.centred_offsets) / double(edges);
-    const at::Tensor flat = (idx + (at::arange(batch, idx.options()) * n).view({batch, 1, 1})).flatten();
-    graph.edge_share = at::zeros({batch * n}, points.options().requires_grad(false))
-                           .index_add_(0, flat, at::ones({edges}, points.options().requires_grad(false)))
-                           .div_(double(edges))
-                           .view({batch, n, 1});
+    const at::Tensor flat =
+        (idx + (at::arange(batch, idx.options()) * n).view({batch, 1, 1})).flatten();
+    graph.edge_share =
+        at::zeros({batch * n}, points.options().requires_grad(false))
+            .index_add_(0, flat, at::ones({edges}, points.options().requires_grad(false)))
+            .div_(double(edges))
+            .view({batch, n, 1});
     return graph;
 }
 
@@ -58,7 +61,8 @@ at::Tensor point_conv_batch_stats(const at::Tensor& features, const PointConvGra
 
     // BN_feats per point, statistics weighted by in-degree; then the gather.
     const at::Tensor feats_mean = (graph.edge_share * features).sum(at::IntArrayRef{0, 1});
-    const at::Tensor feats_var = (graph.edge_share * (features - feats_mean).pow(2)).sum(at::IntArrayRef{0, 1});
+    const at::Tensor feats_var =
+        (graph.edge_share * (features - feats_mean).pow(2)).sum(at::IntArrayRef{0, 1});
     auto [feats_scale, feats_beta] = norm_scale(params, prefix + ".feats.bn", feats_var, eps);
     const at::Tensor neighbours = gather_neighbors(
         at::relu(at::addcmul(feats_beta - feats_mean * feats_scale, features, feats_scale)),
@@ -71,8 +75,8 @@ at::Tensor point_conv_batch_stats(const at::Tensor& features, const PointConvGra
                           shape_string(delta_weight), channels);
     const at::Tensor delta_var = projected_variance(delta_weight, graph.offset_covariance.to(type));
     auto [delta_scale, delta_beta] = norm_scale(params, prefix + ".delta.bn", delta_var, eps);
-    const at::Tensor geometric = at::relu(at::addmm(
-        delta_beta, graph.centred_offsets.to(type), (delta_weight * delta_scale.unsqueeze(1)).t()));
+    const at::Tensor geometric = at::relu(at::addmm(delta_beta, graph.centred_offsets.to(type),
+                                                    (delta_weight * delta_scale.unsqueeze(1)).t()));
 
     // BN_post from the products' mean and second moment, folded into W_post.
     const at::Tensor product = geometric * neighbours.reshape({-1, channels});  // [E,C]
@@ -87,7 +91,9 @@ at::Tensor point_conv_batch_stats(const at::Tensor& features, const PointConvGra
     const at::Tensor post_var = projected_variance(post_weight, covariance);
     auto [post_scale, post_beta] = norm_scale(params, prefix + ".post.bn", post_var, eps);
     if (moments) {
-        auto bias = [&](const char* conv) { return param(params, prefix + conv + ".bias").to(type); };
+        auto bias = [&](const char* conv) {
+            return param(params, prefix + conv + ".bias").to(type);
+        };
         (*moments)[prefix + ".feats.bn"] = {feats_mean, feats_var, edges};
         (*moments)[prefix + ".delta.bn"] = {
             delta_weight.mv(graph.offset_mean.to(type)) + bias(".delta"), delta_var, edges};
@@ -95,7 +101,8 @@ at::Tensor point_conv_batch_stats(const at::Tensor& features, const PointConvGra
                                            edges};
     }
     const at::Tensor folded = post_weight * post_scale.unsqueeze(1);
-    const at::Tensor out = at::relu(at::addmm(post_beta - folded.mv(product_mean), product, folded.t()));
+    const at::Tensor out =
+        at::relu(at::addmm(post_beta - folded.mv(product_mean), product, folded.t()));
     return out.view({batch, n, k, -1}).sum(2);
 }
 
