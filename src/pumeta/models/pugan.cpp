@@ -275,7 +275,9 @@ at::Tensor pugan_discriminate(const at::Tensor& cloud, const ParamMap& d) {
 LossTerms PuGan::training_terms(const at::Tensor& input, const at::Tensor& target,
                                 const ParamMap& params, const ParamMap& auxiliary, int64_t) const {
     at::Tensor pred = upsample(input, params);
-    {
+    // Without the adversarial term there is no discriminator to feed (make_auxiliary).
+    const bool adversarial = options_.adversarial_weight > 0;
+    if (adversarial) {
         // The first output on this batch is kept: after several generator updates on it the
         // discriminator still sees the output from before them all.
         std::lock_guard<std::mutex> lock(last_mutex_);
@@ -292,7 +294,7 @@ LossTerms PuGan::training_terms(const at::Tensor& input, const at::Tensor& targe
         squares = squares.defined() ? squares + sq : sq;
     }
     terms.emplace_back("regularization", 0.5 * options_.regularization * squares);
-    if (options_.adversarial_weight > 0)
+    if (adversarial)
         terms.emplace_back(
             "adversarial",
             options_.adversarial_weight * (pugan_discriminate(pred, auxiliary) - 1).pow(2).mean());
