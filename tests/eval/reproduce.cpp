@@ -19,6 +19,9 @@
 #include <vector>
 
 #include "pumeta/core/error.h"
+#include "pumeta/data/shapes.h"
+#include "pumeta/geometry/io.h"
+#include "pumeta/geometry/sampling.h"
 #include "pumeta/inference/upsample.h"
 #include "pumeta/models/backbone.h"
 #include "pumeta/models/checkpoint.h"
@@ -236,6 +239,98 @@ TEST_F(ReproduceTest, ReferenceModelsGetAPlainRowWhereTheirFileExists) {
     const std::string missing = tables.at("missing").dump();
     EXPECT_NE(missing.find("Absent: no file"), std::string::npos) << missing;
     EXPECT_EQ(missing.find("PU-Gaussian (imported)"), std::string::npos) << missing;
+}
+
+/// A public benchmark folder in the published layout: two generated meshes, 256-point inputs,
+/// ground truths at 4x and 16x.
+fs::path make_benchmark_folder(const fs::path& root) {
+    for (const char* folder : {"input_256", "gt_1024", "gt_4096", "original_meshes"})
+        fs::create_directories(root / folder);
+    for (uint64_t seed : {21, 22}) {
+        const TriangleMesh mesh = generate_shape(seed);
+        const std::string name = fmt::format("shape{}", seed);
+        write_mesh((root / "original_meshes" / (name + ".off")).string(), mesh);
+        write_point_cloud((root / "input_256" / (name + ".xyz")).string(),
+                          {sample_uniform(mesh, 256, seed).points, {}, {}});
+        for (int64_t n : {1024, 4096})
+            write_point_cloud((root / fmt::format("gt_{}", n) / (name + ".xyz")).string(),
+                              {sample_uniform(mesh, n, seed + 100).points, {}, {}});
+    }
+    return root;
+}
+
+TEST_F(ReproduceTest, PublicBenchmarkTablesHaveEveryRowScoredAsEvalBenchmark) {
+    nlohmann::json j = *config_;
+    j["paper_tables"] = false;
+    const fs::path data = make_benchmark_folder(dir_->path() / "minibench");
+    j["benchmarks"] = {{{"name", "minibench"},
+                        {"label", "two generated shapes"},
+                        {"data_dir", data.string()},
+                        {"ratios", {4, 16}}},
+                       {{"name", "nogt"}, {"data_dir", data.string()}, {"ratios", {8}}}};
+    fs::path out = dir_->path() / "benchmark-tables";
+    nlohmann::json tables = reproduce(ReproduceConfig::from_json(j, "full"), out.string(), "test");
+
+    // Only the benchmark tables: no cell of the dataset's test sets was evaluated.
+    EXPECT_FALSE(tables.contains("table1"));
+    EXPECT_FALSE(fs::exists(out / "runs/test-indist-x4"));
+    const std::string md = test::read_file((out / "tables.md").string());
+    const size_t heading = md.find("## Table I on two generated shapes\n");
+    ASSERT_NE(heading, std::string::npos) << md;
+    EXPECT_LT(heading, md.find("### 4× (2 objects)"));
+    EXPECT_LT(md.find("### 4× (2 objects)"), md.find("### 16× (2 objects)"));
+
+    for (int64_t r : {4, 16}) {
+        const nlohmann::json& table =
+            tables.at("benchmarks").at("minibench").at(fmt::format("x{}", r));
+        // Every cell is the mean over objects of its evaluate_benchmark run's summary.
+        for (const auto& [label, cell] :
+             std::vector<std::pair<std::string, std::string>>{{"input, unchanged", "input"},
+                                                              {"midpoint baseline", "midpoint"},
+                                                              {"PU-GCN", "pugcn-x4"}}) {
+            const nlohmann::json summary =
+                read_json(out / fmt::format("runs/minibench-x{}", r) / cell / "summary.json");
+            EXPECT_EQ(summary.at("objects"), 2);
+            EXPECT_EQ(summary.at("ratio"), r);
+            const nlohmann::json& first = row(table, label).at("cells").at(0);
+            EXPECT_EQ(first.at("metric"), "cd_1e3");
+            const double cd = summary.at("cd_1e3").get<double>();
+            EXPECT_NEAR(first.at("mean").get<double>(), cd, 1e-7 * cd) << label << " " << r;
+        }
+        // "+ ours" is paired with the plain backbone on both objects.
+        const nlohmann::json& ours = row(table, "PU-GCN + ours (N = 2)").at("cells").at(0);
+        ASSERT_TRUE(ours.contains("vs_base"));
+        EXPECT_EQ(ours.at("vs_base").at("count"), 2);
+        const nlohmann::json tta =
+            read_json(out / fmt::format("runs/minibench-x{}/pugcn-x4-meta.tta2/summary.json", r));
+        EXPECT_EQ(tta.at("tta").at("steps"), 2);
+    }
+    // The upsampled clouds are scored: the input scores worse than the midpoint at 4x.
+    const nlohmann::json& x4 = tables.at("benchmarks").at("minibench").at("x4");
+    EXPECT_GT(row(x4, "input, unchanged")["cells"][0]["mean"].get<double>(),
+              row(x4, "midpoint baseline")["cells"][0]["mean"].get<double>());
+    // A ratio without ground truths leaves its rows missing with the folder's reason.
+    EXPECT_NE(md.find("no gt_2048 folder for ratio 8"), std::string::npos) << md;
+
+    // A second run reuses every cell; a changed folder (a third object) makes new ones.
+    nlohmann::json again = reproduce(ReproduceConfig::from_json(j, "full"), out.string(), "test");
+    EXPECT_EQ(again.at("benchmarks"), tables.at("benchmarks"));
+    const std::string shape = "shape21";
+    for (const char* folder : {"input_256", "gt_1024", "gt_4096"})
+        fs::copy_file(data / folder / (shape + ".xyz"), data / folder / "shape23.xyz");
+    fs::copy_file(data / "original_meshes" / (shape + ".off"),
+                  data / "original_meshes" / "shape23.off");
+    nlohmann::json grown = reproduce(ReproduceConfig::from_json(j, "full"), out.string(), "test");
+    EXPECT_EQ(read_json(out / "runs/minibench-x4/midpoint/summary.json").at("objects"), 3);
+    EXPECT_EQ(row(grown.at("benchmarks").at("minibench").at("x4"), "PU-GCN")
+                  .at("cells")
+                  .at(0)
+                  .at("count"),
+              3);
+
+    // A benchmark may not take the name of a test set.
+    j["benchmarks"][0]["name"] = "test-indist";
+    EXPECT_THROW(ReproduceConfig::from_json(j, "full"), InputError);
 }
 
 TEST_F(ReproduceTest, TableSevenTakesItsOwnBackbonesWithoutTheirOtherTables) {
@@ -516,6 +611,16 @@ TEST(ReproduceConfig, TheShippedConfigRoundTripsThroughJson) {
     written.erase("budget");
     ReproduceConfig back = ReproduceConfig::from_json(written, "full");
     EXPECT_EQ(back.to_json(), full.to_json());
+
+    std::ifstream pugan_in(std::string(PUMETA_SOURCE_DIR) + "/configs/reproduce-pugan.json");
+    ASSERT_TRUE(pugan_in) << "configs/reproduce-pugan.json";
+    ReproduceConfig pugan = ReproduceConfig::from_json(nlohmann::json::parse(pugan_in), "full");
+    EXPECT_FALSE(pugan.paper_tables);
+    ASSERT_EQ(pugan.benchmarks.size(), 1u);
+    EXPECT_EQ(pugan.benchmarks[0].ratios, (std::vector<int64_t>{4, 16}));
+    nlohmann::json pugan_written = pugan.to_json();
+    pugan_written.erase("budget");
+    EXPECT_EQ(ReproduceConfig::from_json(pugan_written, "full").to_json(), pugan.to_json());
 
     EXPECT_THROW(ReproduceConfig::from_json({{"zero_shot", {{"backbone", {"pugcn"}}}}}, "full"),
                  InputError);

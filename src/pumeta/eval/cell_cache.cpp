@@ -14,7 +14,9 @@
 #include "pumeta/core/error.h"
 #include "pumeta/core/sha256.h"
 #include "pumeta/data/layout.h"
+#include "pumeta/eval/benchmark_protocol.h"
 #include "pumeta/eval/cases_csv.h"
+#include "pumeta/eval/evaluate_benchmark.h"
 #include "pumeta/eval/evaluate_cases.h"
 #include "pumeta/inference/model_file.h"
 #include "pumeta/inference/upsample.h"
@@ -127,13 +129,28 @@ std::optional<RunResult> CellCache::evaluate_or_reuse(const std::string& key, co
     RunResult result;
     result.dir = "runs/" + key;
     fs::path dir = out_dir_ / "runs" / key;
-    fs::path cases = layout::cases_dir(config_.dataset_dir, spec.set, spec.ratio);
-    if (!fs::exists(layout::case_index_path(cases))) {
-        result.error = "no test cases at " + cases.string();
-        return result;
+    fs::path cases;
+    std::optional<BenchmarkLayout> benchmark;
+    if (const PublicBenchmark* public_benchmark = config_.benchmark(spec.set)) {
+        try {
+            benchmark = find_benchmark_layout(public_benchmark->data_dir,
+                                              public_benchmark->input_points, spec.ratio);
+        } catch (const InputError& e) {
+            result.error = e.what();
+            return result;
+        }
+        benchmark->benchmark = public_benchmark->name;
+        cases = public_benchmark->data_dir;
+    } else {
+        cases = layout::cases_dir(config_.dataset_dir, spec.set, spec.ratio);
+        if (!fs::exists(layout::case_index_path(cases))) {
+            result.error = "no test cases at " + cases.string();
+            return result;
+        }
     }
     int64_t max_cases = spec.max_cases >= 0 ? spec.max_cases : config_.max_cases;
-    const nlohmann::json& identity = identity_of(key, spec, cases, max_cases);
+    const nlohmann::json& identity =
+        identity_of(key, spec, cases, max_cases, benchmark ? &*benchmark : nullptr);
     fs::path spec_file = dir / "spec.json";
     auto reusable = [&] {
         return fs::exists(dir / kCasesCsvFile) && fs::exists(dir / "summary.json") &&
@@ -162,7 +179,9 @@ std::optional<RunResult> CellCache::evaluate_or_reuse(const std::string& key, co
     }
     ++count_;
     if (lock && !reusable()) {
-        if (!evaluate(key, spec, dir, cases, max_cases, identity, result)) return result;
+        if (!evaluate(key, spec, dir, cases, max_cases, identity, benchmark ? &*benchmark : nullptr,
+                      result))
+            return result;
     } else {
         spdlog::info("reproduce: [{}] reusing {}", count_, key);
     }
@@ -176,7 +195,7 @@ std::optional<RunResult> CellCache::evaluate_or_reuse(const std::string& key, co
 
 bool CellCache::evaluate(const std::string& key, const RunSpec& spec, const fs::path& dir,
                          const fs::path& cases, int64_t max_cases, const nlohmann::json& identity,
-                         RunResult& result) {
+                         const BenchmarkLayout* benchmark, RunResult& result) {
     // spec.partial.json marks a cell begun with this identity: an interrupted
     // evaluation resumes after its last finished case.
     fs::path partial_spec = dir / "spec.partial.json";
@@ -212,7 +231,10 @@ bool CellCache::evaluate(const std::string& key, const RunSpec& spec, const fs::
     }
     options.upsample.seed = config_.seed;
     try {
-        evaluate_cases(cases.string(), model.backbone.get(), options, dir.string());
+        if (benchmark)
+            evaluate_benchmark(*benchmark, model.backbone.get(), options, dir.string());
+        else
+            evaluate_cases(cases.string(), model.backbone.get(), options, dir.string());
     } catch (const InputError& e) {
         // E.g. no sampling floor for sets without a second GT sample: a missing cell
         // (nothing to resume).
@@ -230,7 +252,8 @@ bool CellCache::evaluate(const std::string& key, const RunSpec& spec, const fs::
 /// What a cell's result depends on (its spec.json). Computed once per cell: it hashes or
 /// loads the model file, and a deferred cell is asked for again in every pass.
 const nlohmann::json& CellCache::identity_of(const std::string& key, const RunSpec& spec,
-                                             const fs::path& cases, int64_t max_cases) {
+                                             const fs::path& cases, int64_t max_cases,
+                                             const BenchmarkLayout* benchmark) {
     auto found = identities_.find(key);
     if (found != identities_.end()) return found->second;
     nlohmann::json identity = {{"cases", cases.string()},
@@ -257,6 +280,15 @@ const nlohmann::json& CellCache::identity_of(const std::string& key, const RunSp
                                  {"lr", spec.zero_shot.lr}};
     }
     if (spec.method == "external") identity["command"] = spec.command;
+    if (benchmark) {
+        // Its objects by name: a mesh added to or removed from the folder makes a new cell.
+        nlohmann::json objects = nlohmann::json::array();
+        for (const BenchmarkObject& object : benchmark->objects) objects.push_back(object.name);
+        identity["benchmark"] = {{"input_dir", benchmark->input_dir},
+                                 {"gt_dir", benchmark->gt_dir},
+                                 {"objects", objects},
+                                 {"protocol", benchmark_protocol_description()}};
+    }
     return identities_.emplace(key, std::move(identity)).first->second;
 }
 

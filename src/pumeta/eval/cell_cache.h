@@ -1,7 +1,8 @@
 // The cells of `pumeta reproduce`: one cell is one `evaluate_cases` run (a method on the cases
-// of one set at one ratio), kept in <out>/runs/<set>-x<r>[-<noise>]/<method>/ with the spec it
-// was run with. A cell whose spec is unchanged is reused, an interrupted one resumes, and a
-// lock file per cell lets several processes with the same output share the work.
+// of one set at one ratio; on a public benchmark's folder, one `evaluate_benchmark` run), kept in
+// <out>/runs/<set>-x<r>[-<noise>]/<method>/ with the spec it was run with. A cell whose spec is
+// unchanged is reused, an interrupted one resumes, and a lock file per cell lets several processes
+// with the same output share the work.
 #pragma once
 
 #include <cstdint>
@@ -13,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "pumeta/eval/evaluate_benchmark.h"
 #include "pumeta/eval/reproduce_config.h"
 
 namespace pumeta {
@@ -68,11 +70,15 @@ class CellCache {
     std::optional<RunResult> evaluate_or_reuse(const std::string& key, const RunSpec& spec);
     /// Runs evaluate_cases for a cell whose lock this process holds; false (with
     /// result.error) when it failed on its input.
+    /// `benchmark`: the cell's public benchmark folder (evaluate_benchmark()), or null for
+    /// a set of the dataset's cases (evaluate_cases()).
     bool evaluate(const std::string& key, const RunSpec& spec, const std::filesystem::path& dir,
                   const std::filesystem::path& cases, int64_t max_cases,
-                  const nlohmann::json& identity, RunResult& result);
+                  const nlohmann::json& identity, const BenchmarkLayout* benchmark,
+                  RunResult& result);
     const nlohmann::json& identity_of(const std::string& key, const RunSpec& spec,
-                                      const std::filesystem::path& cases, int64_t max_cases);
+                                      const std::filesystem::path& cases, int64_t max_cases,
+                                      const BenchmarkLayout* benchmark);
 
     const ReproduceConfig& config_;
     std::filesystem::path out_dir_;

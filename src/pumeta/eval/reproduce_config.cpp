@@ -1,5 +1,6 @@
 #include "pumeta/eval/reproduce_config.h"
 
+#include <algorithm>
 #include <filesystem>
 
 #include "pumeta/core/error.h"
@@ -62,6 +63,31 @@ nlohmann::json ReferenceModel::to_json() const {
 }
 
 template <class Self, class Visit>
+void public_benchmark_fields(Self& b, Visit&& visit) {
+    visit("name", b.name);
+    visit("label", b.label);
+    visit("data_dir", b.data_dir);
+    visit("input_points", b.input_points);
+    visit("ratios", b.ratios);
+}
+
+PublicBenchmark PublicBenchmark::from_json(const nlohmann::json& j) {
+    PublicBenchmark b;
+    read_fields(j, "reproduce config: benchmark",
+                [&](auto&& visit) { public_benchmark_fields(b, visit); });
+    if (b.name.empty() || b.data_dir.empty())
+        throw_input_error(kContext, "each benchmark needs a 'name' and a 'data_dir'");
+    if (b.label.empty()) b.label = b.name;
+    if (b.ratios.empty() || *std::min_element(b.ratios.begin(), b.ratios.end()) < 2)
+        throw_input_error(kContext, "benchmark '{}': 'ratios' must be at least 2", b.name);
+    return b;
+}
+
+nlohmann::json PublicBenchmark::to_json() const {
+    return write_fields([&](auto&& visit) { public_benchmark_fields(*this, visit); });
+}
+
+template <class Self, class Visit>
 void zero_shot_fields(Self& z, Visit&& visit) {
     visit("steps", z.steps);
     visit("batch_patches", z.batch_patches);
@@ -110,6 +136,8 @@ void reproduce_fields(Self& c, Visit&& visit) {
     visit("max_cases", c.max_cases);
     visit("figure_cases", c.figure_cases);
     visit("zero_shot", c.zero_shot);
+    visit("paper_tables", c.paper_tables);
+    visit("benchmarks", c.benchmarks);
 }
 
 ReproduceConfig ReproduceConfig::from_json(nlohmann::json j, const std::string& budget) {
@@ -130,6 +158,10 @@ ReproduceConfig ReproduceConfig::from_json(nlohmann::json j, const std::string& 
     if (c.tta_unit != "object" && c.tta_unit != "patch" && c.tta_unit != "cloud")
         throw_input_error(kContext, "'tta_unit' must be \"object\", \"patch\" or \"cloud\"");
     if (c.sets.empty()) throw_input_error(kContext, "'sets' is empty");
+    for (const PublicBenchmark& b : c.benchmarks)
+        if (std::count(c.sets.begin(), c.sets.end(), b.name) ||
+            std::count(c.scan_sets.begin(), c.scan_sets.end(), b.name))
+            throw_input_error(kContext, "benchmark '{}' has the name of a test set", b.name);
     return c;
 }
 
@@ -146,6 +178,12 @@ std::optional<double> ReproduceConfig::tta_lr_for(const std::string& backbone,
         if (it != tta_lr_without_meta.end()) return it->second;
     }
     return std::nullopt;
+}
+
+const PublicBenchmark* ReproduceConfig::benchmark(const std::string& set) const {
+    for (const PublicBenchmark& b : benchmarks)
+        if (b.name == set) return &b;
+    return nullptr;
 }
 
 std::string ReproduceConfig::label_of(const std::string& backbone) const {

@@ -37,6 +37,24 @@ struct ReferenceModel {
     nlohmann::json to_json() const;
 };
 
+/// A public benchmark's test folder (PU-GAN's or PU1K's published layout, read by
+/// find_benchmark_layout()): the tables of "Table I on public benchmarks", scored with the
+/// published protocol (eval/benchmark_protocol.h). Evaluation only: nothing is chosen on it.
+struct PublicBenchmark {
+    /// The name of its cells (runs/<name>-x<r>/...); must not be one of the test sets.
+    std::string name;
+    std::string label;
+    /// The folder holding input_<N>/ and gt_<rN>/.
+    std::string data_dir;
+    /// input_<N> (0: the only one, or input_2048).
+    int64_t input_points = 0;
+    /// One table per ratio (each needs its gt_<rN>/ folder).
+    std::vector<int64_t> ratios = {4, 16};
+
+    static PublicBenchmark from_json(const nlohmann::json& j);
+    nlohmann::json to_json() const;
+};
+
 /// `command` with every "{bindir}" replaced by the directory of this executable.
 std::string with_bindir(std::string command);
 
@@ -111,7 +129,14 @@ struct ReproduceConfig {
     /// figures of `pumeta report`.
     int64_t figure_cases = 4;
     ZeroShotBaseline zero_shot;
+    /// Tables I-VIII on dataset_dir (false: only the public benchmarks' tables).
+    bool paper_tables = true;
+    /// "Table I on public benchmarks": every backbone plain and + ours, the reference rows.
+    std::vector<PublicBenchmark> benchmarks;
     std::string budget = "full";
+
+    /// The benchmark whose cells carry the name `set`, or null (a test set of dataset_dir).
+    const PublicBenchmark* benchmark(const std::string& set) const;
 
     /// tta_lr_without_meta for a backbone at a ratio, or none (the model's own).
     std::optional<double> tta_lr_for(const std::string& backbone, int64_t ratio) const;

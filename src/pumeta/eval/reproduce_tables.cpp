@@ -7,6 +7,7 @@
 #include <filesystem>
 
 #include "pumeta/core/error.h"
+#include "pumeta/eval/benchmark_protocol.h"
 #include "pumeta/inference/model_file.h"
 
 namespace pumeta {
@@ -435,6 +436,34 @@ void write_table8(TablePass& pass) {
         backbone_rows(pass, config.scan_sets, r, rows);
         pass.writer.table(fmt::format("Table VIII, {}×", r), config.scan_sets, {kCd, kP2f}, rows,
                           pass.tables["table8"][fmt::format("x{}", r)]);
+    }
+}
+
+void write_benchmark_tables(TablePass& pass) {
+    for (const PublicBenchmark& benchmark : pass.config.benchmarks) {
+        pass.md() << "## Table I on " << benchmark.label << "\n\n"
+                  << "`" << benchmark.data_dir << "`, scored with the published protocol ("
+                  << benchmark_protocol_description()
+                  << "). Evaluation only: no model, step size or setting was chosen on it. HD is "
+                     "the published tables' (hd_legacy); P2F the mean over objects of each "
+                     "object's mean (the pooled mean when every object has rN points). Each "
+                     "\"ours\" row is paired with its plain backbone.\n\n";
+        for (int64_t r : benchmark.ratios) {
+            const RunResult& input = pass.cells.get(pass.spec(benchmark.name, r, "input"));
+            pass.md() << "### " << r << "× ("
+                      << (input.ok ? std::to_string(input.cases.size()) + " objects"
+                                   : "no objects: " + input.error)
+                      << ")\n\n";
+            if (!input.ok)
+                pass.notes.push_back(fmt::format("{} at {}×: {}", benchmark.label, r, input.error));
+            std::vector<TableWriter::Row> rows;
+            reference_rows(pass, {benchmark.name}, r, /*floor=*/false, rows);
+            backbone_rows(pass, {benchmark.name}, r, rows);
+            pass.writer.table(fmt::format("Table I on {}, {}×", benchmark.name, r),
+                              {benchmark.name},
+                              {kBenchmarkCd, kBenchmarkHd, kBenchmarkP2f, kBenchmarkSeconds}, rows,
+                              pass.tables["benchmarks"][benchmark.name][fmt::format("x{}", r)]);
+        }
     }
 }
 

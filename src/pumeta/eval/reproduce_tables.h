@@ -68,5 +68,8 @@ void write_table6(TablePass& pass);
 void write_table7(TablePass& pass);
 /// Table VIII (beyond the paper): the scan sets (config.scan_sets) at each scan ratio.
 void write_table8(TablePass& pass);
+/// Table I on each public benchmark (config.benchmarks) at each of its ratios: the reference
+/// rows and every backbone plain and + ours, scored with the published protocol.
+void write_benchmark_tables(TablePass& pass);
 
 }  // namespace pumeta

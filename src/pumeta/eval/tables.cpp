@@ -12,6 +12,10 @@ const Metric kHd{"hd", "HD (×10⁻²)", 1e-2, false};
 const Metric kP2f{"p2f", "P2F (×10⁻³)", 1e-3, false};
 const Metric kPsnr{"psnr", "PSNR (dB)", 1.0, true};
 const Metric kSeconds{"seconds", "time (ms/object)", 1e-3, false};
+const Metric kBenchmarkCd{"cd_1e3", "CD (×10⁻³)", 1.0, false};
+const Metric kBenchmarkHd{"hd_legacy_1e3", "HD (×10⁻³)", 1.0, false};
+const Metric kBenchmarkP2f{"p2f_1e3", "P2F (×10⁻³)", 1.0, false};
+const Metric kBenchmarkSeconds{"seconds", "s/object", 1.0, false};
 
 std::string table_number(double v) {
     if (!std::isfinite(v)) return "—";

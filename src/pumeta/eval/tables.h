@@ -24,6 +24,11 @@ extern const Metric kHd;
 extern const Metric kP2f;
 extern const Metric kPsnr;
 extern const Metric kSeconds;
+/// The columns of a public benchmark's cases.csv (evaluate_benchmark()), already × 10³.
+extern const Metric kBenchmarkCd;
+extern const Metric kBenchmarkHd;  ///< the published tables' (hd_legacy)
+extern const Metric kBenchmarkP2f;
+extern const Metric kBenchmarkSeconds;
 
 /// A cell's number: 3 decimals (1 from 100 on), "—" when not finite.
 std::string table_number(double v);
