@@ -226,8 +226,15 @@ TEST_F(ReproduceTest, ReferenceModelsGetAPlainRowWhereTheirFileExists) {
     j["zero_shot"]["max_cases"] = 0;
     const fs::path imported = dir_->path() / "imported-pugaussian.pt";
     save_checkpoint(imported.string(), *make_backbone(small_backbone_config("pugaussian")));
-    j["reference_models"] = {{{"label", "PU-Gaussian (imported)"}, {"model", imported.string()}},
-                             {{"label", "Absent"}, {"model", (dir_->path() / "no.pt").string()}}};
+    const fs::path meta = dir_->path() / "models" / "pugcn-x4-meta.pt";
+    j["reference_models"] = {{{"label", "PU-Gaussian (imported)"},
+                              {"model", imported.string()},
+                              {"tta_lr", 0.001},
+                              {"meta_model", meta.string()}},
+                             {{"label", "Absent"}, {"model", (dir_->path() / "no.pt").string()}},
+                             {{"label", "Unmeta"},
+                              {"model", imported.string()},
+                              {"meta_model", (dir_->path() / "no-meta.pt").string()}}};
     fs::path out = dir_->path() / "reference-models";
     nlohmann::json tables = reproduce(ReproduceConfig::from_json(j, "quick"), out.string(), "test");
 
@@ -239,6 +246,26 @@ TEST_F(ReproduceTest, ReferenceModelsGetAPlainRowWhereTheirFileExists) {
     const std::string missing = tables.at("missing").dump();
     EXPECT_NE(missing.find("Absent: no file"), std::string::npos) << missing;
     EXPECT_EQ(missing.find("PU-Gaussian (imported)"), std::string::npos) << missing;
+    EXPECT_NE(missing.find("Unmeta: no meta-trained file"), std::string::npos) << missing;
+
+    // Its "+ TTA w/o meta" and "+ ours" rows, each paired with the plain row.
+    const nlohmann::json& tta = row(tables.at("table8").at("x4"),
+                                    "PU-Gaussian (imported) + TTA w/o meta (N = 2, α = 0.001)");
+    ASSERT_TRUE(tta["cells"][0].contains("vs_base"));
+    nlohmann::json tta_summary =
+        read_json(out / "runs/test-indist-x4" / (imported.stem().string() + ".tta2.lr0.001") /
+                  "summary.json");
+    EXPECT_EQ(tta_summary["tta"]["steps"], 2);
+    EXPECT_NEAR(tta["cells"][0]["vs_base"]["mean_difference"].get<double>(),
+                tta_summary["cd"]["mean"].get<double>() - cd, 1e-8 * cd);
+    const nlohmann::json& ours =
+        row(tables.at("table8").at("x4"), "PU-Gaussian (imported) + ours (N = 2)");
+    ASSERT_TRUE(ours["cells"][0].contains("vs_base"));
+    EXPECT_TRUE(fs::exists(out / "runs/test-indist-x4/pugcn-x4-meta.tta2/summary.json"));
+    EXPECT_THROW(
+        ReproduceConfig::from_json(
+            {{"reference_models", {{{"label", "x"}, {"model", "m.pt"}, {"tta_lr", -1}}}}}, "full"),
+        InputError);
 }
 
 /// A public benchmark folder in the published layout: two generated meshes, 256-point inputs,

@@ -47,6 +47,8 @@ template <class Self, class Visit>
 void reference_model_fields(Self& m, Visit&& visit) {
     visit("label", m.label);
     visit("model", m.model);
+    visit("tta_lr", m.tta_lr);
+    visit("meta_model", m.meta_model);
 }
 
 ReferenceModel ReferenceModel::from_json(const nlohmann::json& j) {
@@ -55,6 +57,8 @@ ReferenceModel ReferenceModel::from_json(const nlohmann::json& j) {
                 [&](auto&& visit) { reference_model_fields(m, visit); });
     if (m.label.empty() || m.model.empty())
         throw_input_error(kContext, "each reference model needs a 'label' and a 'model'");
+    if (m.tta_lr < 0)
+        throw_input_error(kContext, "reference model '{}': 'tta_lr' must not be negative", m.label);
     return m;
 }
 

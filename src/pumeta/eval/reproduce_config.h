@@ -32,6 +32,13 @@ struct ReferenceModel {
     std::string label;
     /// The model file (relative to the working directory).
     std::string model;
+    /// > 0: a "+ TTA w/o meta" row, Algorithm 2 on `model` with this step size (chosen on
+    /// validation data) and the config's tta_steps, paired with the plain row.
+    double tta_lr = 0;
+    /// Non-empty: a "+ ours" row, Algorithm 2 with this meta-trained file (e.g. meta-trained
+    /// from the imported weights) and its learned step sizes, paired with the plain row; no
+    /// row while the file does not exist.
+    std::string meta_model;
 
     static ReferenceModel from_json(const nlohmann::json& j);
     nlohmann::json to_json() const;

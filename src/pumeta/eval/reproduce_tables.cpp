@@ -129,12 +129,43 @@ void reference_rows(TablePass& pass, const std::vector<std::string>& sets, int64
                 fmt::format("{} at {}×: no row ({})", reference.label, r, e.what()));
             continue;
         }
-        rows.push_back({reference.label,
+        const TableWriter::Row plain{
+            reference.label,
+            pass.per_set(
+                sets,
+                [&](const std::string& set) { return pass.network(set, r, reference.model, 0); }),
+            {}};
+        rows.push_back(plain);
+        if (reference.tta_lr > 0)
+            rows.push_back({fmt::format("{} + TTA w/o meta ({}, α = {:g})", reference.label,
+                                        pass.n_label(), reference.tta_lr),
+                            pass.per_set(sets,
+                                         [&](const std::string& set) {
+                                             return pass.network(set, r, reference.model,
+                                                                 pass.config.tta_steps,
+                                                                 reference.tta_lr);
+                                         }),
+                            plain.runs});
+        if (reference.meta_model.empty()) continue;
+        if (!std::filesystem::exists(reference.meta_model, error)) {
+            pass.notes.push_back(fmt::format("{}: no meta-trained file {} (no \"ours\" row)",
+                                             reference.label, reference.meta_model));
+            continue;
+        }
+        try {
+            serve(reference.meta_model, r);
+        } catch (const InputError& e) {
+            pass.notes.push_back(
+                fmt::format("{} + ours at {}×: no row ({})", reference.label, r, e.what()));
+            continue;
+        }
+        rows.push_back({fmt::format("{} + ours ({})", reference.label, pass.n_label()),
                         pass.per_set(sets,
                                      [&](const std::string& set) {
-                                         return pass.network(set, r, reference.model, 0);
+                                         return pass.network(set, r, reference.meta_model,
+                                                             pass.config.tta_steps);
                                      }),
-                        {}});
+                        plain.runs});
     }
 }
 
