@@ -1,6 +1,7 @@
 #include "pumeta/inference/upsample.h"
 
 #include <ATen/ATen.h>
+#include <ATen/Parallel.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -447,6 +448,46 @@ TEST(MidpointUpsample, SampleEliminationReplacesFpsBeyondItsBudget) {
     // Duplicated inputs (zero spacing) still give the exact count.
     at::Tensor doubled = at::cat({input.slice(0, 0, 10), input.slice(0, 0, 10)});
     EXPECT_EQ(midpoint_upsample(doubled, 4, 0, 0).size(0), 80);
+}
+
+TEST(UpsampleCloud, EveryBackboneGivesTheSameBitsOnOneTwoThreeAndEightThreads) {
+    // Batches of a fixed composition run concurrently, each on one thread: the output may not
+    // depend on the thread count, plain or adapted (one θ' per object, or one per patch).
+    const int previous = at::get_num_threads();
+    const at::Tensor input = sample_uniform(generate_shape(5), 300, 1).points;
+    for (const std::string& name : registered_backbones()) {
+        auto model = make_backbone(small_backbone_config(name));
+        for (const char* mode : {"plain", "object", "patch"}) {
+            UpsampleOptions options;
+            options.batch_patches = 3;
+            if (std::string(mode) != "plain") {
+                options.adaptation.inner.steps = 1;
+                options.adaptation.inner.step_size = 1e-3;
+                options.adaptation.unit = std::string(mode) == "object" ? AdaptationUnit::kObject
+                                                                        : AdaptationUnit::kPatch;
+            }
+            at::Tensor first;
+            for (int threads : {1, 2, 3, 8}) {
+                at::set_num_threads(threads);
+                at::Tensor points;
+                try {
+                    points = upsample_cloud(*model, input, options).points;
+                } catch (const InputError& e) {
+                    // A backbone with its own whole-cloud pipeline has no per-patch unit.
+                    ASSERT_STREQ(mode, "patch") << name << ": " << e.what();
+                    break;
+                }
+                if (!first.defined()) {
+                    first = points;
+                    EXPECT_GT(points.size(0), 0) << name;
+                } else {
+                    EXPECT_TRUE(points.equal(first))
+                        << name << ", " << mode << ", " << threads << " threads";
+                }
+            }
+        }
+    }
+    at::set_num_threads(previous);
 }
 
 }  // namespace

@@ -5,6 +5,9 @@
 // the same on any machine runs its matrix products on one thread.
 #pragma once
 
+#include <cstdint>
+#include <functional>
+
 namespace pumeta {
 
 /// Sets LibTorch's intra-op thread count (and so OpenBLAS's) for its lifetime, then restores
@@ -19,5 +22,12 @@ class ThreadCountGuard {
   private:
     int previous_ = 0;  // 0: nothing to restore
 };
+
+/// Runs body(0), ..., body(count - 1) concurrently on up to LibTorch's intra-op thread count,
+/// every operation inside each call on one thread (the calls share no thread pool, so each
+/// computes as on one thread): when body(i) depends on i alone, the results are the same bits
+/// whatever the thread count. Calls run in the caller's autograd mode (worker threads do not
+/// inherit it otherwise). The first exception thrown by a call is rethrown.
+void for_each_concurrently(int64_t count, const std::function<void(int64_t)>& body);
 
 }  // namespace pumeta

@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <mutex>
 #include <optional>
 #include <random>
 
@@ -23,6 +24,10 @@ namespace pumeta {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+// Patches are split into at least this many batches where there are as many patches, so that
+// up to this many threads have work: a function of the patch count, never of the threads.
+constexpr int64_t kMinBatches = 8;
 
 double seconds_since(Clock::time_point start) {
     return std::chrono::duration<double>(Clock::now() - start).count();
@@ -260,16 +265,17 @@ at::Tensor upsample_whole(const Backbone& model, const ParamMap& params, const a
     std::vector<at::Tensor> parts =
         cloud.size(0) <= part_points ? std::vector<at::Tensor>{at::arange(cloud.size(0), at::kLong)}
                                      : kdtree_partition(cloud, part_points);
-    std::vector<at::Tensor> outputs;
-    ThreadCountGuard one_thread(1);
+    // The parts run concurrently, each on one thread (core/threads.h): the same bits whatever
+    // the thread count.
+    std::vector<at::Tensor> outputs(parts.size());
     at::NoGradGuard no_grad;
-    for (const at::Tensor& part : parts) {
-        at::Tensor points = cloud.index_select(0, part);
+    for_each_concurrently(static_cast<int64_t>(parts.size()), [&](int64_t i) {
+        at::Tensor points = cloud.index_select(0, parts[i]);
         at::Tensor centre = points.mean(0, /*keepdim=*/true);
         at::Tensor x = ((points - centre) * scale).unsqueeze(0);
-        outputs.push_back(model.upsample(x, params).squeeze(0) / scale + centre);
-        result.patches += 1;
-    }
+        outputs[i] = model.upsample(x, params).squeeze(0) / scale + centre;
+    });
+    result.patches += static_cast<int64_t>(parts.size());
     const ScanHandling scan(cloud, options);
     at::Tensor candidates = scan.place(cloud, at::cat(outputs)).contiguous();
     return scan.output(cloud, model.ratio(), [&](int64_t count, const at::Tensor& exclude) {
@@ -374,39 +380,54 @@ at::Tensor upsample_once(const Backbone& model, const at::Tensor& cloud,
         return upsample_whole(model, object_params, cloud, patches, whole_cloud, options, result);
     result.patches += num_patches;
 
-    // The network runs on one thread (core/threads.h), so that its outputs have the same bits
-    // whatever the thread count; the geometry around it (patches, kNN, FPS) stays parallel,
-    // as its results do not depend on the thread count.
-    std::vector<at::Tensor> outputs;
-    double before_sum = 0, after_sum = 0;
+    // The patches go through the network in batches of a fixed composition (the model's batch
+    // size, never the thread count), batches run concurrently, each on one thread
+    // (core/threads.h), so that the outputs have the same bits whatever the thread count; with
+    // per-patch adaptation each patch is such a unit. The geometry around it (patches, kNN,
+    // FPS) is parallel inside, as its results do not depend on the thread count.
+    const int64_t batch =
+        adaptation.enabled() && per_patch
+            ? 1
+            : std::min(options.batch_patches > 0 ? options.batch_patches
+                                                 : model.inference_batch_patches(),
+                       std::max<int64_t>(1, (num_patches + kMinBatches - 1) / kMinBatches));
+    const int64_t num_batches = (num_patches + batch - 1) / batch;
+    std::vector<at::Tensor> outputs(num_batches);
+    std::vector<double> before(num_batches, 0), after(num_batches, 0),
+        adapt_seconds(num_batches, 0);
     std::optional<ProgressBar> progress;
     if (options.show_progress) progress.emplace(num_patches, fmt::format("upsample x{}", r));
-    const int64_t batch =
-        options.batch_patches > 0 ? options.batch_patches : model.inference_batch_patches();
-    std::optional<ThreadCountGuard> one_thread(std::in_place, 1);
-    for (int64_t start = 0; start < num_patches; start += batch) {
-        if (progress) progress->update(start, fmt::format("{} patches", num_patches));
-        int64_t end = std::min(num_patches, start + batch);
+    std::mutex progress_mutex;
+    int64_t patches_done = 0;
+    for_each_concurrently(num_batches, [&](int64_t b) {
+        const int64_t start = b * batch, end = std::min(num_patches, start + batch);
         at::Tensor chunk = patches.points.slice(0, start, end);
         if (adaptation.enabled() && per_patch) {
-            for (int64_t i = 0; i < chunk.size(0); ++i) {
-                at::Tensor x = chunk.slice(0, i, i + 1);
-                auto t0 = Clock::now();
-                auto [adapted, losses] = adapt_on(x, options.seed + start + i);
-                result.tta_seconds += seconds_since(t0);
-                before_sum += losses.front();
-                after_sum += losses.back();
-                at::NoGradGuard no_grad;
-                outputs.push_back(model.upsample(x, adapted));
-            }
-            continue;
+            auto t0 = Clock::now();
+            auto [adapted, losses] = adapt_on(chunk, options.seed + start);
+            adapt_seconds[b] = seconds_since(t0);
+            before[b] = losses.front();
+            after[b] = losses.back();
+            at::NoGradGuard no_grad;
+            outputs[b] = model.upsample(chunk, adapted);
+        } else {
+            at::NoGradGuard no_grad;
+            outputs[b] = model.upsample(chunk, object_params);
         }
-        at::NoGradGuard no_grad;
-        outputs.push_back(model.upsample(chunk, object_params));
-    }
-    one_thread.reset();
+        if (progress) {
+            std::lock_guard<std::mutex> lock(progress_mutex);
+            patches_done += end - start;
+            progress->update(patches_done, fmt::format("{} patches", num_patches));
+        }
+    });
     if (progress) progress->finish();
     if (adaptation.enabled() && per_patch) {
+        double before_sum = 0, after_sum = 0;
+        for (int64_t b = 0; b < num_batches; ++b) {
+            before_sum += before[b];
+            after_sum += after[b];
+            result.tta_seconds += adapt_seconds[b];
+        }
         result.loss_before = before_sum / num_patches;
         result.loss_after = after_sum / num_patches;
     }
