@@ -198,6 +198,23 @@ TEST(KnnBruteForce, ChunkedQueriesGiveTheSameAnswer) {
     EXPECT_TRUE(at::equal(tree.sq_distances, brute.sq_distances));
 }
 
+TEST(KnnIndices, AreKnnsIndicesForTrackedTensorsOfAnyFloatingType) {
+    // A network's coordinates: double, requiring gradients, batched.
+    const at::Tensor points =
+        at::rand({2, 300, 3}, at::TensorOptions().dtype(at::kDouble)).requires_grad_(true);
+    const at::Tensor queries = at::rand({2, 50, 3}, at::TensorOptions().dtype(at::kDouble));
+    const at::Tensor idx = knn_indices(points, queries, 6);
+    EXPECT_FALSE(idx.requires_grad());
+    EXPECT_EQ(idx.scalar_type(), at::kLong);
+    EXPECT_TRUE(idx.equal(
+        knn(points.detach().to(at::kFloat).contiguous(), queries.to(at::kFloat).contiguous(), 6)
+            .indices));
+    // Unbatched too, and nearest first.
+    const at::Tensor one = knn_indices(points[0], points[0], 2);
+    EXPECT_TRUE(one.select(1, 0).equal(at::arange(300, at::kLong)));
+    EXPECT_THROW(knn_indices(points, queries, 301), InputError);
+}
+
 TEST(KnnBruteForce, BatchedEqualsEachElementAlone) {
     at::Tensor points = at::stack({uniform_random_points(400, 16), uniform_random_points(400, 17),
                                    shuffled_grid(8, 18).slice(0, 0, 400)});

@@ -33,9 +33,10 @@ int main(int argc, char** argv) {
     std::string log_level = "info";
     app.add_option("--threads", threads,
                    "CPU threads (default: all cores): training, metrics and the geometry of "
-                   "upsampling (patches, kNN, FPS) use them all; upsampling's networks and "
-                   "test-time adaptation run on one, so the output has the same bytes on any "
-                   "count")
+                   "upsampling (patches, kNN, FPS) use them all; upsampling runs batches of "
+                   "patches (and per-patch adaptation) concurrently, each on one thread, so "
+                   "the output has the same bytes on any count; one-θ' adaptation and "
+                   "whole-cloud networks (PU-Dense, Grad-PU, PU-Gaussian) run on one")
         ->check(pumeta::cli::integer_in(1, 1024));
     app.add_option("--log-level", log_level, "trace, debug, info, warn, error or off")
         ->check(CLI::IsMember({"trace", "debug", "info", "warn", "error", "off"}));

@@ -167,6 +167,13 @@ KnnResult KdTree::query(const at::Tensor& queries, int64_t k) const {
     return result;
 }
 
+at::Tensor knn_indices(const at::Tensor& points, const at::Tensor& queries, int64_t k) {
+    at::NoGradGuard no_grad;
+    return knn(points.detach().to(at::kFloat).contiguous(),
+               queries.detach().to(at::kFloat).contiguous(), k)
+        .indices;
+}
+
 KnnResult knn(const at::Tensor& points, const at::Tensor& queries, int64_t k) {
     const bool batched = check_point_pair(points, queries, "knn");
     // On the CPU, building a tree and querying it beat the brute force at every size measured

@@ -45,6 +45,11 @@ class KdTree {
 /// InputError when k is not in [1, N].
 KnnResult knn(const at::Tensor& points, const at::Tensor& queries, int64_t k);
 
+/// The indices of knn() for tensors of any floating type that autograd may track (a network's
+/// coordinates): computed without gradient on float32 copies. The neighbour search of the
+/// backbones' graphs.
+at::Tensor knn_indices(const at::Tensor& points, const at::Tensor& queries, int64_t k);
+
 /// Brute force on any device, same shapes as knn(). Processes queries in blocks to bound the
 /// O(Q·N) distance matrix; no gradient flows into the result.
 KnnResult knn_brute_force(const at::Tensor& points, const at::Tensor& queries, int64_t k);

@@ -71,15 +71,6 @@ at::Tensor gather_rows(const at::Tensor& x, const at::Tensor& idx) {
         .view({batch, idx.size(1), idx.size(2), channels});
 }
 
-/// Indices of the k nearest of `points` [B,N,3] for `queries` [B,Q,3], nearest first (the
-/// k-d tree runs on float32 copies; indices are not differentiated).
-at::Tensor nearest(const at::Tensor& points, const at::Tensor& queries, int64_t k) {
-    at::NoGradGuard no_grad;
-    return knn(points.detach().to(at::kFloat).contiguous(),
-               queries.detach().to(at::kFloat).contiguous(), k)
-        .indices;
-}
-
 }  // namespace
 
 GradPuOptions GradPuOptions::from_json(const nlohmann::json& config) {
@@ -157,7 +148,7 @@ GradPu::Features GradPu::extract(const at::Tensor& p, const ParamMap& params, bo
     };
     Features out;
     out.points = p;
-    const at::Tensor idx = nearest(p, p, std::min(options_.k, p.size(1)));  // [B,M,k]
+    const at::Tensor idx = knn_indices(p, p, std::min(options_.k, p.size(1)));  // [B,M,k]
     // Train mode and the running statistics' update run each Point3DConv from small moments
     // of its edges (nn/point_conv.h); with running statistics the edges are composed directly.
     PointConvGraph graph;
@@ -203,7 +194,7 @@ at::Tensor GradPu::regress(const Features& features, const at::Tensor& q,
     const int64_t batch = q.size(0), queries = q.size(1);
     // Inverse-distance weights of the 3 nearest patch points; the norm's gradient is 0 where
     // a query sits on a patch point (the queries start there), as PyTorch's.
-    const at::Tensor idx = nearest(p, q, std::min<int64_t>(3, p.size(1)));  // [B,Q,3]
+    const at::Tensor idx = knn_indices(p, q, std::min<int64_t>(3, p.size(1)));  // [B,Q,3]
     at::Tensor distance = at::linalg_vector_norm(gather_rows(p, idx) - q.unsqueeze(2), 2, {-1});
     at::Tensor weights = (distance + 1e-8).reciprocal();
     weights = (weights / weights.sum(-1, /*keepdim=*/true)).unsqueeze(-1);  // [B,Q,3,1]
@@ -248,7 +239,7 @@ at::Tensor midpoint_interpolate(const at::Tensor& x, int64_t ratio) {
     at::NoGradGuard no_grad;
     const int64_t batch = x.size(0), n = x.size(1);
     const int64_t k = std::min(2 * ratio, n);
-    const at::Tensor idx = nearest(x, x, k);
+    const at::Tensor idx = knn_indices(x, x, k);
     at::Tensor mids = ((gather_rows(x, idx) + x.unsqueeze(2)) / 2).reshape({batch, n * k, 3});
     // Fewer midpoints than outputs only for patches of fewer than `ratio` points: FPS then
     // repeats some.
@@ -325,7 +316,7 @@ at::Tensor GradPu::loss(const at::Tensor& input, const at::Tensor& target, const
     const at::Tensor queries =
         interpolated + options_.query_sigma * noise.to(interpolated.device());
     // The true distance: to the nearest target point.
-    const at::Tensor closest = gather_rows(target.detach(), nearest(target, queries, 1));
+    const at::Tensor closest = gather_rows(target.detach(), knn_indices(target, queries, 1));
     const at::Tensor truth = at::linalg_vector_norm(closest.squeeze(2) - queries, 2, {-1});
     const at::Tensor predicted = distance(interpolated, queries, params, /*batch_statistics=*/true);
     return (predicted - truth).abs().sum(1).mean();

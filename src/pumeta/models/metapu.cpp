@@ -368,14 +368,7 @@ MetaPuOutput MetaPu::forward(const at::Tensor& x, const ParamMap& params, double
         stage("stage1", options_.stage1_blocks, false, x, f0, std::sqrt(scale), n1, params);
     // Feature transfer: each new point takes the mean of the stage-1 features of its k
     // nearest input points.
-    at::Tensor nearest;
-    {
-        at::NoGradGuard no_grad;
-        nearest =
-            knn(x.detach().to(at::kFloat).contiguous(),
-                first_stage.points.detach().to(at::kFloat).contiguous(), std::min(options_.k, n))
-                .indices;
-    }
+    const at::Tensor nearest = knn_indices(x, first_stage.points, std::min(options_.k, n));
     at::Tensor transferred = gather_rows(first_stage.features, nearest).mean(2);
     Stage second_stage = stage("stage2", options_.stage2_blocks, true, first_stage.points,
                                transferred, double(n_out) / double(n1), n_out, params);

@@ -89,14 +89,6 @@ at::Tensor gather_rows(const at::Tensor& x, const at::Tensor& idx) {
     return flat.view({batch, idx.size(1), idx.size(2), channels});
 }
 
-// kNN indices of `queries` [B,Q,3] among `points` [B,N,3] (kd-trees on a float32 copy).
-at::Tensor nearest(const at::Tensor& points, const at::Tensor& queries, int64_t k) {
-    at::NoGradGuard no_grad;
-    return knn(points.detach().to(at::kFloat).contiguous(),
-               queries.detach().to(at::kFloat).contiguous(), k)
-        .indices;
-}
-
 uint64_t mix(uint64_t seed, int64_t step) {
     return seed ^ (static_cast<uint64_t>(step) + 1) * 0x9E3779B97F4A7C15ull;
 }
@@ -259,7 +251,7 @@ at::Tensor Mpu::skip_connection(const at::Tensor& xyz, const at::Tensor& feature
     const bool shared = previous.xyz.size(0) == 1 && batch > 1;
     const int64_t k = std::min(options_.skip_neighbors, previous.xyz.size(1));
     at::Tensor queries = shared ? xyz.reshape({1, batch * m, 3}) : xyz;
-    at::Tensor idx = nearest(previous.xyz, queries, k);
+    at::Tensor idx = knn_indices(previous.xyz, queries, k);
     auto gather = [&](const at::Tensor& source) {
         at::Tensor rows = gather_rows(source, idx);
         return shared ? rows.reshape({batch, m, k, source.size(2)}) : rows;
@@ -320,10 +312,10 @@ std::pair<at::Tensor, at::Tensor> Mpu::run_training(const at::Tensor& input, con
             for (auto& pick : picks) pick = std::min(m - 1, int64_t(uniform01(rng) * double(m)));
             at::Tensor seed_idx = at::tensor(picks, at::kLong).to(xyz.device()).view({batch, 1, 1});
             at::Tensor seeds = gather_rows(xyz, seed_idx).squeeze(2).detach();  // [B,1,3]
-            xyz = gather_rows(xyz, nearest(xyz, seeds, size)).squeeze(1);
+            xyz = gather_rows(xyz, knn_indices(xyz, seeds, size)).squeeze(1);
             const int64_t gt_k =
                 std::max<int64_t>(1, std::min(target.size(1), (target.size(1) * size + m / 2) / m));
-            target = gather_rows(target, nearest(target, seeds, gt_k)).squeeze(1).detach();
+            target = gather_rows(target, knn_indices(target, seeds, gt_k)).squeeze(1).detach();
         }
         std::optional<at::NoGradGuard> no_grad;
         if (level < frozen) no_grad.emplace();

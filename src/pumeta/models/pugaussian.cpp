@@ -70,14 +70,6 @@ at::Tensor head(const at::Tensor& x, const ParamMap& params, const std::string& 
                    prefix + ".1");
 }
 
-/// The k nearest of each point of p [B,N,3] among them, itself included (int64 [B,N,k]; the
-/// search runs on float32 copies, indices are not differentiated).
-at::Tensor neighbours(const at::Tensor& p, int64_t k) {
-    at::NoGradGuard no_grad;
-    const at::Tensor points = p.detach().to(at::kFloat).contiguous();
-    return knn(points, points, std::min(k, p.size(1))).indices;
-}
-
 /// A view of the bytes of a contiguous CPU tensor, for seeding from its values.
 std::string_view bytes_of(const at::Tensor& t) {
     return {static_cast<const char*>(t.data_ptr()), static_cast<size_t>(t.nbytes())};
@@ -286,7 +278,8 @@ PuGaussian::Stages PuGaussian::forward_collecting(const at::Tensor& x, const at:
     // The Gaussian module.
     at::Tensor features =
         mlp(Pass::with_global(mlp(x, params, "gaussian.mlp1")), params, "gaussian.mlp2");
-    features = pass.transformer(features, x, neighbours(x, options_.k), "gaussian.transformer");
+    features = pass.transformer(features, x, knn_indices(x, x, std::min(options_.k, x.size(1))),
+                                "gaussian.transformer");
     out.features = features;
     out.means = x + head(features, params, "gaussian.offset");
     const at::Tensor scale =
@@ -331,7 +324,8 @@ PuGaussian::Stages PuGaussian::forward_collecting(const at::Tensor& x, const at:
         } else {
             h = mlp(Pass::with_global(at::cat({own, drawn_from}, -1)), params, "refine.mlp2");
         }
-        h = pass.transformer(h, p, neighbours(p, options_.k), "refine.transformer");
+        h = pass.transformer(h, p, knn_indices(p, p, std::min(options_.k, p.size(1))),
+                             "refine.transformer");
         // The ratio-1 up unit: a transposed convolution of a reduction beside the features, a
         // residual MLP, ReLU.
         const at::Tensor reduced = mlp(h, params, "refine.up.mlp");
