@@ -10,10 +10,10 @@
 #include <ATen/ATen.h>
 #include <ATen/Parallel.h>
 #include <benchmark/benchmark.h>
-#include <sys/resource.h>
 
 #include <map>
 
+#include "pumeta/core/allocator.h"
 #include "pumeta/nn/attention.h"
 #include "pumeta/nn/gradients.h"
 
@@ -27,12 +27,6 @@ constexpr int64_t kBatch = 28, kPoints = 256, kRatio = 4;
 at::Tensor patches(int64_t batch, int64_t n, int64_t channels, uint64_t seed) {
     at::Generator gen = at::detail::createCPUGenerator(seed);
     return at::rand({batch, n, channels}, gen);
-}
-
-double peak_rss_mb() {
-    rusage usage{};
-    getrusage(RUSAGE_SELF, &usage);
-    return double(usage.ru_maxrss) / 1024.0;  // Linux reports KiB
 }
 
 const char* preset_name(int64_t preset) { return preset == 0 ? "paper" : "compact"; }
@@ -49,7 +43,7 @@ DisPu& model(int64_t preset, int64_t ratio) {
 void report(benchmark::State& state, int64_t patches_per_iteration) {
     state.counters["patches/s"] = benchmark::Counter(double(patches_per_iteration),
                                                      benchmark::Counter::kIsIterationInvariantRate);
-    state.counters["peak_rss_MB"] = peak_rss_mb();
+    state.counters["peak_rss_MB"] = pumeta::peak_resident_mib();
 }
 
 // Arg: 0 = paper width, 1 = compact.

@@ -8,7 +8,6 @@
 #include <ATen/ATen.h>
 #include <ATen/Parallel.h>
 #include <benchmark/benchmark.h>
-#include <sys/resource.h>
 
 #include <chrono>
 #include <cstdio>
@@ -82,12 +81,6 @@ void BM_PuGaussian16x(benchmark::State& state) {
 }
 BENCHMARK(BM_PuGaussian16x)->Iterations(1)->UseManualTime()->Unit(benchmark::kSecond);
 
-double peak_rss_mb() {
-    rusage usage{};
-    getrusage(RUSAGE_SELF, &usage);
-    return double(usage.ru_maxrss) / 1024.0;  // Linux reports KiB
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -108,6 +101,6 @@ int main(int argc, char** argv) {
     if (four > 0 && sixteen > 0)
         std::printf("  PU-Gaussian 16x %.2f s / its 4x: %.2fx (target <= 8)\n", sixteen,
                     sixteen / four);
-    std::printf("  peak resident memory %.0f MB (target < 1500 at 16x)\n", peak_rss_mb());
+    std::printf("  peak resident memory %.0f MB (target < 1500 at 16x)\n", peak_resident_mib());
     return 0;
 }

@@ -10,4 +10,8 @@ namespace pumeta {
 /// once at start-up, before the first tensor; a no-op on other C libraries.
 void keep_freed_memory();
 
+/// The largest resident set this process has had so far, in MiB (getrusage; what the
+/// benchmarks report as peak memory).
+double peak_resident_mib();
+
 }  // namespace pumeta
