@@ -115,57 +115,53 @@ void reference_rows(TablePass& pass, const std::vector<std::string>& sets, int64
                                      }),
                         {}});
     }
-    for (const ReferenceModel& reference : pass.config.reference_models) {
+    // A model file's row needs the file and a model that serves r; otherwise a note says why.
+    auto usable = [&](const std::string& file, const std::string& absent,
+                      const std::string& row_name) {
         std::error_code error;
-        if (!std::filesystem::exists(reference.model, error)) {
-            pass.notes.push_back(fmt::format("{}: no file {} (no row; `pumeta import` makes it)",
-                                             reference.label, reference.model));
-            continue;
+        if (!std::filesystem::exists(file, error)) {
+            pass.notes.push_back(absent);
+            return false;
         }
         try {
-            serve(reference.model, r);
+            serve(file, r);
         } catch (const InputError& e) {
-            pass.notes.push_back(
-                fmt::format("{} at {}×: no row ({})", reference.label, r, e.what()));
-            continue;
+            pass.notes.push_back(fmt::format("{} at {}×: no row ({})", row_name, r, e.what()));
+            return false;
         }
-        const TableWriter::Row plain{
-            reference.label,
-            pass.per_set(
-                sets,
-                [&](const std::string& set) { return pass.network(set, r, reference.model, 0); }),
-            {}};
+        return true;
+    };
+    auto model_row = [&](const std::string& label, const std::string& file, int64_t steps,
+                         std::optional<double> lr, const std::vector<const RunResult*>& bases) {
+        return TableWriter::Row{label,
+                                pass.per_set(sets,
+                                             [&](const std::string& set) {
+                                                 return pass.network(set, r, file, steps, lr);
+                                             }),
+                                bases};
+    };
+    for (const ReferenceModel& reference : pass.config.reference_models) {
+        if (!usable(reference.model,
+                    fmt::format("{}: no file {} (no row; `pumeta import` makes it)",
+                                reference.label, reference.model),
+                    reference.label))
+            continue;
+        const TableWriter::Row plain =
+            model_row(reference.label, reference.model, 0, std::nullopt, {});
         rows.push_back(plain);
         if (reference.tta_lr > 0)
-            rows.push_back({fmt::format("{} + TTA w/o meta ({}, α = {:g})", reference.label,
-                                        pass.n_label(), reference.tta_lr),
-                            pass.per_set(sets,
-                                         [&](const std::string& set) {
-                                             return pass.network(set, r, reference.model,
-                                                                 pass.config.tta_steps,
-                                                                 reference.tta_lr);
-                                         }),
-                            plain.runs});
-        if (reference.meta_model.empty()) continue;
-        if (!std::filesystem::exists(reference.meta_model, error)) {
-            pass.notes.push_back(fmt::format("{}: no meta-trained file {} (no \"ours\" row)",
-                                             reference.label, reference.meta_model));
-            continue;
-        }
-        try {
-            serve(reference.meta_model, r);
-        } catch (const InputError& e) {
-            pass.notes.push_back(
-                fmt::format("{} + ours at {}×: no row ({})", reference.label, r, e.what()));
-            continue;
-        }
-        rows.push_back({fmt::format("{} + ours ({})", reference.label, pass.n_label()),
-                        pass.per_set(sets,
-                                     [&](const std::string& set) {
-                                         return pass.network(set, r, reference.meta_model,
-                                                             pass.config.tta_steps);
-                                     }),
-                        plain.runs});
+            rows.push_back(model_row(fmt::format("{} + TTA w/o meta ({}, α = {:g})",
+                                                 reference.label, pass.n_label(), reference.tta_lr),
+                                     reference.model, pass.config.tta_steps, reference.tta_lr,
+                                     plain.runs));
+        if (!reference.meta_model.empty() &&
+            usable(reference.meta_model,
+                   fmt::format("{}: no meta-trained file {} (no \"ours\" row)", reference.label,
+                               reference.meta_model),
+                   reference.label + " + ours"))
+            rows.push_back(model_row(fmt::format("{} + ours ({})", reference.label, pass.n_label()),
+                                     reference.meta_model, pass.config.tta_steps, std::nullopt,
+                                     plain.runs));
     }
 }
 
